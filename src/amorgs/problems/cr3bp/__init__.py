@@ -1,0 +1,1 @@
+"""amorgs.problems.cr3bp."""

@@ -1,0 +1,1 @@
+"""amorgs.solvers."""
