@@ -67,11 +67,11 @@ class Problem(Protocol):
 
     def sample_uniform(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray: ...
 
-    def make_local_solver(self, options: dict | None = None) -> LocalSolver: ...
-
-    def quality(self, x: np.ndarray) -> np.ndarray:
-        """The 'higher is better' figure of merit of solutions (final fuel mass for the CR3BP)."""
+    def check_guess(self, x: np.ndarray) -> np.ndarray:
+        """Validate one decision vector (length, finite, bounds); ``ValueError`` names the field."""
         ...
+
+    def make_local_solver(self, options: dict | None = None) -> LocalSolver: ...
 
 
 def check_alpha(alpha: float, alpha_range: tuple[float, float], problem: str) -> float:
