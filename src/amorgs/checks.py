@@ -1,0 +1,94 @@
+"""``amorgs check-outputs``: does the results tree hold everything a config promises?
+
+Every output must exist and be non-empty; solution tables must pass the table schema and hold rows;
+figures must be PNG files; JSON must parse; and, with MLflow enabled, every job of the config must have a
+FINISHED run in the store (from this or an earlier invocation), every figure must be logged as an
+artifact, and the latest workflow run must have FINISHED.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from amorgs import layout
+from amorgs.config import Config
+from amorgs.data.tables import validate_solutions
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def expected_jobs(cfg: Config) -> list[tuple[str, dict[str, str]]]:
+    """(rule, wildcards) of every job a complete run of ``cfg`` executes."""
+    jobs: list[tuple[str, dict[str, str]]] = []
+    for name, problem in cfg.problems.enabled().items():
+        for label in problem.alpha_values():
+            jobs += [("generate", {"problem": name, "alpha": label, "shard": str(k)}) for k in range(problem.generate.shards)]
+            jobs.append(("merge", {"problem": name, "alpha": label}))
+        jobs.append(("filter", {"problem": name}))
+    if cfg.dejong_cvae.enabled:
+        jobs += [(rule, {"problem": "dejong", "model": "cvae_gmm"}) for rule in ("train_dejong_cvae", "predict_dejong_cvae")]
+    jobs += [(name, {}) for name in layout.figure_names(cfg)]
+    return jobs
+
+
+def _check_file(path: str) -> str | None:
+    p = Path(path)
+    if not p.is_file():
+        return f"{path}: missing"
+    if p.stat().st_size == 0:
+        return f"{path}: empty file"
+    try:
+        if p.suffix == ".png" and not p.read_bytes().startswith(_PNG_SIGNATURE):
+            return f"{path}: not a PNG image"
+        if p.suffix == ".json":
+            json.loads(p.read_text())
+        if p.suffix == ".parquet" and "/solutions/" in path:
+            df = pd.read_parquet(p)
+            validate_solutions(df, where=path)
+            if df.empty:
+                return f"{path}: no rows"
+    except ValueError as exc:
+        return f"{path}: {exc}"
+    return None
+
+
+def check_outputs(cfg: Config, tracked: bool = True) -> list[str]:
+    """Every problem found with the outputs of ``cfg`` (an empty list when all is well)."""
+    files = list(layout.targets(cfg))
+    for name in cfg.problems.enabled():
+        files += layout.alpha_tables(cfg, name)
+    problems = [msg for msg in map(_check_file, files) if msg]
+    for name in cfg.problems.enabled():
+        path = layout.HIGH_QUALITY.format(problem=name)
+        if Path(path).is_file():
+            try:
+                validate_solutions(pd.read_parquet(path), where=path)
+            except ValueError as exc:
+                problems.append(str(exc))
+    if tracked and cfg.mlflow.enabled:
+        problems += _check_tracking(cfg)
+    return problems
+
+
+def _check_tracking(cfg: Config) -> list[str]:
+    from amorgs import tracking
+
+    try:
+        store = tracking.tracked_jobs()
+    except FileNotFoundError as exc:
+        return [f"MLflow: no workflow invocation recorded ({exc})"]
+    problems = []
+    if store["parent_status"] != "FINISHED":
+        problems.append(f"MLflow: the latest workflow run is {store['parent_status']}, not FINISHED")
+    finished = {(j["rule"], json.dumps(j["wildcards"], sort_keys=True)) for j in store["jobs"] if j["status"] == "FINISHED"}
+    for rule, wildcards in expected_jobs(cfg):
+        if (rule, json.dumps(wildcards, sort_keys=True)) not in finished:
+            problems.append(f"MLflow: no FINISHED run of {rule} {wildcards}")
+    logged = {Path(a).name for j in store["jobs"] for a in j["artifacts"]}
+    for name in layout.figure_names(cfg):
+        if f"{name}.png" not in logged:
+            problems.append(f"MLflow: figure {name}.png is not logged")
+    return problems

@@ -1,0 +1,298 @@
+"""The workflow configuration as typed, frozen dataclasses mirroring ``workflow/schemas/config.schema.yaml``.
+
+A config file is checked in two steps: the JSON Schema (every key required, no unknown key, types and
+ranges), then the cross-field rules the schema cannot express (α labels unique per problem, the CVAE needs
+the De Jong data and test α).  Every failure is a :class:`ConfigError` whose message names the file and the
+dotted key, e.g. ``config/smoke.yaml: problems.dejong.generate: Additional properties are not allowed
+('startz' was unexpected)``.
+
+α values appear in file names and Snakemake wildcards as fixed three-decimal labels (:func:`alpha_label`,
+``0.150``); the exact float behind each label is kept here and passed to the solver.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import types
+import typing
+from dataclasses import dataclass
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+import yaml
+
+#: The schema, relative to the repository root (the working directory of the workflow and the CLI).
+SCHEMA_PATH = Path("workflow/schemas/config.schema.yaml")
+
+
+class ConfigError(ValueError):
+    """An invalid configuration; the message names the file and the key."""
+
+
+def alpha_label(alpha: float) -> str:
+    """The stable string form of α used in paths and wildcards: three fixed decimals (``0.150``)."""
+    return f"{alpha:.3f}"
+
+
+@dataclass(frozen=True)
+class AlphaGrid:
+    """``num`` evenly spaced α from ``start`` to ``stop`` inclusive (numpy.linspace)."""
+
+    start: float
+    stop: float
+    num: int
+
+    def values(self) -> tuple[float, ...]:
+        return tuple(float(a) for a in np.linspace(self.start, self.stop, self.num))
+
+
+@dataclass(frozen=True)
+class Alphas:
+    """α values of a problem: ``train`` (a list or a grid) and held-out ``test``; both are generated."""
+
+    train: tuple[float, ...] | AlphaGrid
+    test: tuple[float, ...]
+
+    def train_values(self) -> tuple[float, ...]:
+        return self.train.values() if isinstance(self.train, AlphaGrid) else self.train
+
+
+@dataclass(frozen=True)
+class Job:
+    """Resources of one job: ``threads`` (cores), ``mem_mb`` (MB), ``runtime_min`` (wall minutes)."""
+
+    threads: int
+    mem_mb: int
+    runtime_min: int
+
+
+@dataclass(frozen=True)
+class Generate:
+    """Per α: ``shards`` jobs × ``starts_per_shard`` uniform starts, ``workers`` solver processes per job."""
+
+    shards: int
+    starts_per_shard: int
+    workers: int
+    mem_mb: int
+    runtime_min: int
+
+
+@dataclass(frozen=True)
+class DejongSolver:
+    """scipy BFGS: ``gtol`` (gradient ∞-norm tolerance, dimensionless), ``maxiter`` (iteration cap)."""
+
+    gtol: float
+    maxiter: int
+
+
+@dataclass(frozen=True)
+class DejongFilter:
+    """Keep converged solves with J ≤ ``max_objective`` (``None``: every converged solve)."""
+
+    max_objective: float | None
+
+
+@dataclass(frozen=True)
+class Cr3bpSolver:
+    """IPOPT caps: ``max_iter`` (the primary limit) and ``max_wall_s`` (seconds, a safety net)."""
+
+    max_iter: int
+    max_wall_s: float
+
+
+@dataclass(frozen=True)
+class Cr3bpFilter:
+    """β: keep converged solves with final mass m_f ≥ ``min_final_mass_kg`` (kg)."""
+
+    min_final_mass_kg: float
+
+
+@dataclass(frozen=True)
+class ProblemConfig:
+    """What the generate → merge → filter stages do for one problem."""
+
+    enabled: bool
+    alphas: Alphas
+    generate: Generate
+
+    def alpha_values(self) -> dict[str, float]:
+        """Label → α for every generated α (train, then test), in config order."""
+        return {alpha_label(a): a for a in (*self.alphas.train_values(), *self.alphas.test)}
+
+    def solver_options(self) -> dict:
+        """The solver section as the plain dict the multistart takes."""
+        return dataclasses.asdict(self.solver)  # type: ignore[attr-defined]
+
+    def filter_thresholds(self) -> dict:
+        """The filter section as keyword arguments of :func:`amorgs.data.filter.high_quality`."""
+        return dataclasses.asdict(self.filter)  # type: ignore[attr-defined]
+
+
+@dataclass(frozen=True)
+class DejongConfig(ProblemConfig):
+    solver: DejongSolver
+    filter: DejongFilter
+
+
+@dataclass(frozen=True)
+class Cr3bpConfig(ProblemConfig):
+    solver: Cr3bpSolver
+    filter: Cr3bpFilter
+
+
+@dataclass(frozen=True)
+class Problems:
+    dejong: DejongConfig
+    cr3bp: Cr3bpConfig
+
+    def enabled(self) -> dict[str, ProblemConfig]:
+        """Name → section of every enabled problem."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if getattr(self, f.name).enabled}
+
+
+@dataclass(frozen=True)
+class Mlflow:
+    """Mirror runs to the MLflow SQLite store under ``results/mlflow`` in experiment ``experiment``."""
+
+    enabled: bool
+    experiment: str
+
+
+@dataclass(frozen=True)
+class Resources:
+    """Job resources of the rules other than generate."""
+
+    merge: Job
+    filter: Job
+    train: Job
+    predict: Job
+    figure: Job
+
+
+@dataclass(frozen=True)
+class DejongCVAE:
+    """The GMM-prior CVAE on the De Jong minima (paper Sec. V.A, Table 3).
+
+    ``preset`` names a :class:`amorgs.models.cvae.CVAEConfig` constructor; Adam with ``learning_rate`` for
+    ``epochs`` epochs of ``batch_size`` rows; ``seed`` fixes weights, shuffling and sampling;
+    ``n_samples`` samples are drawn per test α and scored against the true minima within ``radius``
+    (units of x).
+    """
+
+    enabled: bool
+    preset: str
+    learning_rate: float
+    epochs: int
+    batch_size: int
+    seed: int
+    n_samples: int
+    radius: float
+
+
+@dataclass(frozen=True)
+class Config:
+    """The whole workflow configuration; ``seed`` is the base of every derived seed."""
+
+    seed: int
+    mlflow: Mlflow
+    resources: Resources
+    problems: Problems
+    dejong_cvae: DejongCVAE
+
+    @property
+    def hash(self) -> str:
+        """12 hex digits of the SHA-256 of the canonical JSON of the whole config."""
+        text = json.dumps(dataclasses.asdict(self), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+# --------------------------------------------------------------------------------------------- loading
+
+
+def read_yaml(path: str | Path) -> dict:
+    """Read one YAML config file; ``ConfigError`` if it is missing, malformed or not a mapping."""
+    p = Path(path)
+    try:
+        data = yaml.safe_load(p.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: config file not found") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p}: not valid YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{p}: a config file must be a mapping of keys, got {type(data).__name__}")
+    return data
+
+
+def validate_mapping(mapping: dict, schema_path: str | Path = SCHEMA_PATH, source: str = "config") -> None:
+    """Check ``mapping`` against the JSON Schema; one ``ConfigError`` lists every violation by key."""
+    schema = yaml.safe_load(Path(schema_path).read_text())
+    validator = jsonschema.Draft202012Validator(schema)
+    errors = sorted(validator.iter_errors(mapping), key=lambda e: [str(p) for p in e.absolute_path])
+    if errors:
+        lines = [f"{source}: {'.'.join(str(p) for p in e.absolute_path) or '(top level)'}: {e.message}" for e in errors]
+        raise ConfigError("invalid configuration\n  " + "\n  ".join(lines))
+
+
+def from_mapping(mapping: dict, source: str = "config") -> Config:
+    """Build the typed :class:`Config` from a schema-valid mapping and apply the cross-field rules."""
+    cfg = _build(Config, mapping)
+    _check(cfg, source)
+    return cfg
+
+
+def load_config(path: str | Path, schema_path: str | Path = SCHEMA_PATH) -> Config:
+    """Read, validate and build the config in one file."""
+    mapping = read_yaml(path)
+    validate_mapping(mapping, schema_path, str(path))
+    return from_mapping(mapping, str(path))
+
+
+def load_workflow_config(config: dict, configfiles: list, schema_path: str | Path) -> Config:
+    """Validate Snakemake's ``config``: each of its ``configfiles`` alone (so errors name the file), then
+    the merged mapping, which also carries ``--config`` overrides."""
+    for f in configfiles:
+        validate_mapping(read_yaml(f), schema_path, str(f))
+    source = "merged config (" + ", ".join(str(f) for f in configfiles) + ", --config)"
+    validate_mapping(config, schema_path, source)
+    return from_mapping(config, source)
+
+
+def _build(tp: object, value: object) -> object:
+    """Convert schema-valid YAML data to the annotated type ``tp`` (dataclass, tuple, union, scalar)."""
+    if dataclasses.is_dataclass(tp):
+        hints = typing.get_type_hints(tp)
+        return tp(**{k: _build(hints[k], v) for k, v in value.items()})
+    origin = typing.get_origin(tp)
+    if origin is types.UnionType:  # X | None, or tuple[float, ...] | AlphaGrid (a list or a mapping)
+        if value is None:
+            return None
+        options = [t for t in typing.get_args(tp) if t is not type(None)]
+        return next(_build(t, value) for t in options if dataclasses.is_dataclass(t) == isinstance(value, dict))
+    if origin is tuple:
+        return tuple(_build(typing.get_args(tp)[0], v) for v in value)
+    if tp is float:
+        return float(value)
+    return value
+
+
+def _check(cfg: Config, source: str) -> None:
+    """Cross-field rules the schema cannot express."""
+    for field in dataclasses.fields(cfg.problems):
+        name, problem = field.name, getattr(cfg.problems, field.name)
+        seen: dict[str, float] = {}
+        for a in (*problem.alphas.train_values(), *problem.alphas.test):
+            label = alpha_label(a)
+            if label in seen:
+                raise ConfigError(
+                    f"{source}: problems.{name}.alphas: α values {seen[label]!r} and {a!r} share the label "
+                    f"{label} (train and test must be distinct at three decimals)"
+                )
+            seen[label] = a
+    cvae = cfg.dejong_cvae
+    if cvae.enabled and not cfg.problems.dejong.enabled:
+        raise ConfigError(f"{source}: dejong_cvae.enabled needs problems.dejong.enabled: true")
+    if cvae.enabled and not cfg.problems.dejong.alphas.test:
+        raise ConfigError(f"{source}: dejong_cvae.enabled needs test α in problems.dejong.alphas.test")

@@ -1,0 +1,324 @@
+"""The MLflow mirror of the workflow — the only module that imports mlflow.
+
+Files under ``results/`` are the source of truth; MLflow mirrors parameters, metrics and figures so runs
+can be browsed and compared.  Layout of the store (``results/mlflow/``)::
+
+    mlflow.db          SQLite tracking store, URI ``sqlite:///<absolute path>/mlflow.db``
+    artifacts/         artifact root of the experiment (figures, configs)
+    invocation.json    the current workflow invocation: experiment, parent run id, config hash, git commit
+    .lock              serialises every write (see below)
+
+One *parent* run per workflow invocation (:func:`start_invocation` in Snakemake's ``onstart``, closed by
+:func:`finish_invocation` in ``onsuccess``/``onerror``) and one *child* run per job (:func:`job_run`), tagged
+with the rule, its wildcards, the config hash, the git commit and the package versions.
+
+Concurrency: SQLite returns "database is locked" without waiting when a read transaction must be promoted to
+a write while another process writes, which MLflow's own busy timeout cannot prevent.  Every interaction
+with the store therefore holds an exclusive ``flock`` on ``.lock``: writes are milliseconds, jobs minutes.
+
+Failure policy: a job never fails because of tracking.  A missing store or an MLflow error prints one
+warning to the job's log and the job goes on untracked.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import fcntl
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from importlib import metadata
+from pathlib import Path
+
+os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+
+from mlflow.entities import Metric, Param, RunTag  # noqa: E402
+from mlflow.tracking import MlflowClient  # noqa: E402
+
+from amorgs.data.io import read_json, write_json  # noqa: E402
+
+#: The store, relative to the repository root (the workflow's working directory).
+STORE_DIR = Path("results/mlflow")
+DB_NAME = "mlflow.db"
+INVOCATION_FILE = "invocation.json"
+
+#: Distributions whose versions tag every run.
+VERSIONED_PACKAGES = ("amorgs", "numpy", "scipy", "pandas", "pyarrow", "torch", "casadi", "snakemake", "mlflow")
+
+_MAX_BATCH = 900  # MLflow's log_batch accepts at most 1000 metrics
+
+
+def tracking_uri(store_dir: str | Path = STORE_DIR) -> str:
+    """The explicit SQLite URI of the store (absolute path; pysqlite waits up to 60 s on a busy file)."""
+    return f"sqlite:///{(Path(store_dir) / DB_NAME).resolve()}?timeout=60"
+
+
+def package_versions() -> dict[str, str]:
+    """``version.<package>`` → installed version (``python`` included) for every versioned package."""
+    out = {"version.python": sys.version.split()[0]}
+    for name in VERSIONED_PACKAGES:
+        try:
+            out[f"version.{name}"] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[f"version.{name}"] = "not installed"
+    return out
+
+
+def git_state(repo: str | Path = ".") -> dict[str, str]:
+    """``git_commit`` (HEAD, or ``unknown`` outside a checkout) and ``git_dirty`` (``true``/``false``)."""
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], cwd=repo, capture_output=True, text=True, check=True).stdout.strip()
+
+    try:
+        commit = git("rev-parse", "HEAD")
+        dirty = bool(git("status", "--porcelain", "--untracked-files=no"))
+    except (OSError, subprocess.CalledProcessError):
+        return {"git_commit": "unknown", "git_dirty": "unknown"}
+    return {"git_commit": commit, "git_dirty": str(dirty).lower()}
+
+
+@contextmanager
+def _locked(store_dir: Path) -> Iterator[None]:
+    """Hold the store's exclusive write lock."""
+    store_dir.mkdir(parents=True, exist_ok=True)
+    with open(store_dir / ".lock", "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _flatten(mapping: dict, prefix: str = "") -> dict[str, str]:
+    out: dict[str, str] = {}
+    for key, value in mapping.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(_flatten(value, f"{name}."))
+        else:
+            out[name] = json.dumps(value) if isinstance(value, (list, tuple)) else str(value)
+    return out
+
+
+def _warn(what: str, exc: BaseException) -> None:
+    print(f"amorgs.tracking: {what} failed, continuing untracked: {type(exc).__name__}: {exc}", file=sys.stderr)
+
+
+# ---------------------------------------------------------------------------------------- invocations
+
+
+def start_invocation(
+    config: dict, config_hash: str, experiment: str, sources: list[str], store_dir: str | Path = STORE_DIR
+) -> str:
+    """Create the store and experiment if needed, open this invocation's parent run, write ``invocation.json``.
+
+    A parent run left RUNNING by a killed earlier invocation is closed as KILLED first.  ``config`` is the
+    validated mapping (logged as flattened params and as ``config.yaml``); ``sources`` are the config files.
+    Returns the parent run id.
+    """
+    store = Path(store_dir)
+    client = MlflowClient(tracking_uri(store))
+    with _locked(store):
+        previous = store / INVOCATION_FILE
+        if previous.exists():
+            old = read_json(previous)
+            try:
+                if client.get_run(old["parent_run_id"]).info.status == "RUNNING":
+                    client.set_terminated(old["parent_run_id"], "KILLED")
+            except Exception:  # noqa: BLE001 — a stale file from a lost store: nothing to close
+                pass
+        exp = client.get_experiment_by_name(experiment)
+        exp_id = (
+            exp.experiment_id
+            if exp is not None
+            else client.create_experiment(experiment, artifact_location=(store / "artifacts").resolve().as_uri())
+        )
+        now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+        tags = {
+            "kind": "workflow",
+            "config_hash": config_hash,
+            "config_files": " ".join(sources),
+            "host": socket.gethostname(),
+            **git_state(),
+            **package_versions(),
+        }
+        run = client.create_run(exp_id, run_name=f"workflow {now} config {config_hash}", tags=tags)
+        run_id = run.info.run_id
+        params = [Param(k, v[:6000]) for k, v in _flatten(config).items()]
+        for i in range(0, len(params), 100):
+            client.log_batch(run_id, params=params[i : i + 100])
+        client.log_dict(run_id, config, "config.yaml")
+        write_json(
+            {
+                "tracking_uri": tracking_uri(store),
+                "experiment_id": exp_id,
+                "parent_run_id": run_id,
+                "config_hash": config_hash,
+                "git_commit": tags["git_commit"],
+                "git_dirty": tags["git_dirty"],
+            },
+            store / INVOCATION_FILE,
+        )
+    return run_id
+
+
+def stop_tracking(store_dir: str | Path = STORE_DIR) -> None:
+    """Remove ``invocation.json`` so that jobs of this invocation run untracked (``mlflow.enabled: false``)."""
+    (Path(store_dir) / INVOCATION_FILE).unlink(missing_ok=True)
+
+
+def finish_invocation(status: str, store_dir: str | Path = STORE_DIR) -> None:
+    """Close the current parent run with ``status`` (``FINISHED`` or ``FAILED``); warn, never raise."""
+    store = Path(store_dir)
+    path = store / INVOCATION_FILE
+    if not path.exists():
+        return
+    try:
+        inv = read_json(path)
+        with _locked(store):
+            MlflowClient(inv["tracking_uri"]).set_terminated(inv["parent_run_id"], status)
+    except Exception as exc:  # noqa: BLE001
+        _warn("closing the workflow run", exc)
+
+
+# ----------------------------------------------------------------------------------------------- jobs
+
+
+class JobRun:
+    """The MLflow child run of one job; every method is a no-op once tracking is off or has failed."""
+
+    def __init__(self, store: Path, client: MlflowClient | None = None, run_id: str | None = None):
+        self._store = store
+        self._client = client
+        self.run_id = run_id
+        self._metrics: list[Metric] = []
+
+    @property
+    def active(self) -> bool:
+        """Whether this job is still being mirrored to MLflow."""
+        return self._client is not None
+
+    def _call(self, method: str, *args, **kwargs) -> None:
+        if self._client is None:
+            return
+        try:
+            with _locked(self._store):
+                getattr(self._client, method)(self.run_id, *args, **kwargs)
+        except Exception as exc:  # noqa: BLE001 — tracking never fails a job
+            _warn(method, exc)
+            self._client = None
+
+    def log_params(self, params: dict) -> None:
+        """Log parameters (nested dicts flattened with dots, lists as JSON)."""
+        flat = [Param(k, v[:6000]) for k, v in _flatten(params).items()]
+        for i in range(0, len(flat), 100):
+            self._call("log_batch", params=flat[i : i + 100])
+
+    def log_metrics(self, metrics: dict[str, float], step: int = 0) -> None:
+        """Queue numeric metrics at ``step``; they are written in batches, and at the latest on exit."""
+        ts = int(time.time() * 1000)
+        self._metrics.extend(Metric(k, float(v), ts, step) for k, v in metrics.items() if v is not None)
+        if len(self._metrics) >= _MAX_BATCH:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the queued metrics."""
+        while self._metrics:
+            batch, self._metrics = self._metrics[:_MAX_BATCH], self._metrics[_MAX_BATCH:]
+            self._call("log_batch", metrics=batch)
+
+    def log_artifact(self, path: str | Path, artifact_path: str | None = None) -> None:
+        """Copy a file (a figure, a report) into the run's artifacts."""
+        self._call("log_artifact", str(path), artifact_path)
+
+    def close(self, status: str) -> None:
+        """Flush the metrics and end the run with ``status`` (``FINISHED``, ``FAILED``)."""
+        self.flush()
+        self._call("set_terminated", status)
+
+
+def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
+    """A child run under the current invocation, or an untracked :class:`JobRun`."""
+    if not (store / INVOCATION_FILE).exists() or not (store / DB_NAME).exists():
+        print(f"amorgs.tracking: no MLflow invocation under {store}; {rule} runs untracked", file=sys.stderr)
+        return JobRun(store)
+    try:
+        inv = read_json(store / INVOCATION_FILE)
+        client = MlflowClient(inv["tracking_uri"])
+        tags = {
+            "mlflow.parentRunId": inv["parent_run_id"],
+            "kind": "job",
+            "rule": rule,
+            "wildcards": json.dumps(wildcards, sort_keys=True),
+            **{f"wildcard.{k}": str(v) for k, v in wildcards.items()},
+            "config_hash": inv["config_hash"],
+            "git_commit": inv["git_commit"],
+            "git_dirty": inv["git_dirty"],
+            "host": socket.gethostname(),
+            **package_versions(),
+        }
+        name = " ".join([rule, *(f"{k}={v}" for k, v in wildcards.items())])
+        with _locked(store):
+            run = client.create_run(inv["experiment_id"], run_name=name, tags=tags)
+        return JobRun(store, client, run.info.run_id)
+    except Exception as exc:  # noqa: BLE001 — tracking never fails a job
+        _warn("opening the job run", exc)
+        return JobRun(store)
+
+
+@contextmanager
+def job_run(rule: str, wildcards: dict[str, str], store_dir: str | Path = STORE_DIR) -> Iterator[JobRun]:
+    """The child run of one job under the current invocation's parent run.
+
+    Untracked (every :class:`JobRun` method a no-op) when there is no ``invocation.json`` (tracking disabled)
+    or no database (the store was removed), or when MLflow fails.  The run ends FINISHED, or FAILED if the
+    job raises.
+    """
+    job = _open_job_run(rule, wildcards, Path(store_dir))
+    try:
+        yield job
+    except BaseException:
+        job.close("FAILED")
+        raise
+    job.close("FINISHED")
+
+
+# ------------------------------------------------------------------------------------------- queries
+
+
+def tracked_jobs(store_dir: str | Path = STORE_DIR) -> dict:
+    """What the store holds for the current invocation's experiment, for checks::
+
+        {"parent_status": status of the current parent run,
+         "jobs": [{"rule", "wildcards", "status", "metrics", "artifacts"}, ...]}   # every job run, any invocation
+
+    Raises ``FileNotFoundError`` if there is no invocation.
+    """
+    store = Path(store_dir)
+    inv = read_json(store / INVOCATION_FILE)
+    client = MlflowClient(inv["tracking_uri"])
+    with _locked(store):
+        parent = client.get_run(inv["parent_run_id"])
+        runs = client.search_runs([inv["experiment_id"]], filter_string="tags.kind = 'job'", max_results=50000)
+        jobs = [
+            {
+                "rule": r.data.tags.get("rule"),
+                "wildcards": json.loads(r.data.tags.get("wildcards", "{}")),
+                "status": r.info.status,
+                "metrics": dict(r.data.metrics),
+                "artifacts": [a.path for a in client.list_artifacts(r.info.run_id, "figures")],
+            }
+            for r in runs
+        ]
+    return {"parent_status": parent.info.status, "jobs": jobs}
+
+
+def ui_command(store_dir: str | Path = STORE_DIR, host: str = "127.0.0.1", port: int = 5000) -> list[str]:
+    """The command line of the MLflow UI on this store."""
+    return [sys.executable, "-m", "mlflow", "ui", "--backend-store-uri", tracking_uri(store_dir), "--host", host, "--port", str(port)]

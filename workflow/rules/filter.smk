@@ -1,0 +1,22 @@
+# Stage 2: the β-filter over every α of a problem, with a per-α quality report.
+
+
+rule filter:
+    input:
+        lambda w: layout.alpha_tables(CFG, w.problem),
+    output:
+        table=layout.HIGH_QUALITY,
+        report=layout.QUALITY_REPORT,
+    log:
+        "logs/filter/{problem}.log",
+    params:
+        thresholds=filter_arguments,
+    threads: CFG.resources.filter.threads
+    resources:
+        mem_mb=CFG.resources.filter.mem_mb,
+        runtime=CFG.resources.filter.runtime_min,
+    conda:
+        "../envs/amorgs.yaml"
+    shell:
+        "python -m amorgs filter --problem {wildcards.problem} --inputs {input} {params.thresholds} "
+        "--output {output.table} --report {output.report} > {log} 2>&1"
