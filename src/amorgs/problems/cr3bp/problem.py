@@ -1,0 +1,194 @@
+"""The low-thrust Earth–Moon transfer as a problem family over α (max thrust in N), solved with IPOPT.
+
+Decision vector (stored layout, 64 entries): ``(τ_s, τ_i, τ_f, m_f, θ_1, φ_1, ρ_1, …, θ_20, φ_20, ρ_20)``
+with times in TU, m_f in kg of fuel at the terminal state, angles in rad, throttle in [0, 1]; see
+:mod:`amorgs.problems.cr3bp.transcription`.  The objective is −m_f (kg), minimised.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field, fields
+
+import casadi as ca
+import numpy as np
+
+from amorgs.problems.base import SolveRecord, check_alpha, check_vector
+from amorgs.problems.cr3bp.boundary import load_boundary_conditions
+from amorgs.problems.cr3bp.propagation import VERIFY_TOLERANCE, independent_defect
+from amorgs.problems.cr3bp.transcription import (
+    N_SEGMENTS,
+    ForwardBackwardTranscription,
+    TranscriptionOptions,
+    variable_names,
+)
+
+ALPHA_RANGE = (0.1, 1.0)
+IPOPT_SUCCESS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """Everything that determines a CR3BP local solve; hashed into every solution row.
+
+    ``max_iter`` is the primary cap (deterministic); ``max_wall_s`` is only a safety net.  ``feasibility_tol``
+    bounds the NLP's own match-point defect (DU, VU, t) for the solve to count; ``verify_tol`` bounds the
+    independent DOP853 defect (spec §6).
+    """
+
+    hessian: str = "limited-memory"  # or "exact"
+    lbfgs_memory: int = 30
+    max_iter: int = 300
+    max_wall_s: float = 60.0
+    tol: float = 1e-6
+    acceptable_tol: float = 1e-4
+    acceptable_iter: int = 10
+    feasibility_tol: float = 1e-8
+    verify_tol: float = VERIFY_TOLERANCE
+    linear_solver: str = "mumps"
+    jit: bool = True
+    transcription: TranscriptionOptions = field(default_factory=TranscriptionOptions)
+
+    @classmethod
+    def from_dict(cls, options: dict | None) -> "SolverOptions":
+        """Build from a plain dict (config section); unknown keys raise a ``ValueError`` naming them."""
+        options = dict(options or {})
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise ValueError(f"unknown cr3bp solver option(s) {unknown}; known: {sorted(known)}")
+        tr = options.pop("transcription", {})
+        if isinstance(tr, dict):
+            tknown = {f.name for f in fields(TranscriptionOptions)}
+            bad = sorted(set(tr) - tknown)
+            if bad:
+                raise ValueError(f"unknown cr3bp transcription option(s) {bad}; known: {sorted(tknown)}")
+            tr = TranscriptionOptions(**tr)
+        opts = cls(transcription=tr, **options)
+        if opts.hessian not in ("exact", "limited-memory"):
+            raise ValueError(f"cr3bp solver option hessian must be 'exact' or 'limited-memory', got {opts.hessian!r}")
+        return opts
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def digest(self) -> str:
+        """Short stable hash of the options (stored in every row as ``options_hash``)."""
+        return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode()).hexdigest()[:12]
+
+
+class LowThrustTransfer:
+    """Problem family: minimum-fuel transfer from the GTO spiral end to the L1-halo stable manifold."""
+
+    name = "cr3bp"
+    alpha_range = ALPHA_RANGE
+
+    def __init__(self, boundary_conditions: dict):
+        self.bc = boundary_conditions
+        self.initial_state = np.asarray(boundary_conditions["initial_state"], float)
+        self.terminal_state = np.asarray(boundary_conditions["terminal_state"], float)
+        self.variable_names = variable_names(N_SEGMENTS)
+        m0 = float(self.initial_state[6])
+        self.lower = np.array([0.0, 0.0, 0.0, 0.0] + [0.0, -math.pi / 2, 0.0] * N_SEGMENTS)
+        self.upper = np.array([40.0, 15.0, 15.0, m0] + [2 * math.pi, math.pi / 2, 1.0] * N_SEGMENTS)
+
+    @classmethod
+    def from_resource(cls, path=None) -> "LowThrustTransfer":
+        return cls(load_boundary_conditions(path))
+
+    def sample_uniform(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        """Uniform initial guesses of spec §6 (m_f ~ U[350, 450] kg); shape (n, 64)."""
+        check_alpha(alpha, self.alpha_range, self.name)
+        lo = self.lower.copy()
+        hi = self.upper.copy()
+        lo[3], hi[3] = 350.0, 450.0
+        return lo + (hi - lo) * rng.random((n, lo.size))
+
+    def check_guess(self, x: np.ndarray) -> np.ndarray:
+        return check_vector(x, self.variable_names, self.lower, self.upper, self.name)
+
+    def make_local_solver(self, options: dict | SolverOptions | None = None) -> "IpoptSolver":
+        opts = options if isinstance(options, SolverOptions) else SolverOptions.from_dict(options)
+        return IpoptSolver(self, opts)
+
+
+class IpoptSolver:
+    """IPOPT on the forward–backward transcription; build inside the process that uses it."""
+
+    def __init__(self, problem: LowThrustTransfer, options: SolverOptions):
+        self.problem = problem
+        self.options = options
+        self.options_hash = options.digest()
+        t0 = time.perf_counter()
+        self.transcription = ForwardBackwardTranscription(
+            problem.initial_state, problem.terminal_state, options.transcription
+        )
+        self.lbw, self.ubw = self.transcription.bounds()
+        ipopt = {
+            "max_iter": options.max_iter,
+            "max_wall_time": options.max_wall_s,
+            "tol": options.tol,
+            "acceptable_tol": options.acceptable_tol,
+            "acceptable_iter": options.acceptable_iter,
+            "constr_viol_tol": options.feasibility_tol,
+            "acceptable_constr_viol_tol": options.feasibility_tol,
+            "mu_strategy": "adaptive",
+            "hessian_approximation": options.hessian,
+            "limited_memory_max_history": options.lbfgs_memory,
+            "linear_solver": options.linear_solver,
+            "print_level": 0,
+            "sb": "yes",
+        }
+        opts = {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
+        if options.jit:
+            self._jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
+            opts.update(
+                jit=True,
+                jit_name=os.path.join(self._jit_dir.name, "cr3bp"),
+                jit_temp_suffix=False,
+                compiler="shell",
+                jit_options={"flags": ["-O2"], "verbose": False, "directory": self._jit_dir.name},
+            )
+        self.nlpsol = ca.nlpsol("cr3bp", "ipopt", self.transcription.nlp, opts)
+        self.build_s = time.perf_counter() - t0
+
+    def solve(self, x0: np.ndarray, alpha: float) -> SolveRecord:
+        """Solve from a stored-layout guess; never raises for numerical failures."""
+        p = self.problem
+        alpha = check_alpha(alpha, p.alpha_range, p.name)
+        x0 = p.check_guess(x0)
+        w0 = self.transcription.to_internal(x0, alpha)
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        try:
+            sol = self.nlpsol(x0=w0, p=alpha, lbx=self.lbw, ubx=self.ubw, lbg=0.0, ubg=0.0)
+            stats = self.nlpsol.stats()
+        except RuntimeError as exc:  # evaluation errors at the start point etc.
+            return SolveRecord(
+                status="exception", converged=False, solver_success=False, x=np.full(x0.size, np.nan),
+                wall_s=time.perf_counter() - wall0, cpu_s=time.process_time() - cpu0, message=str(exc)[:200],
+            )
+        wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+        status = str(stats.get("return_status", "unknown"))
+        w = np.asarray(sol["x"]).ravel()
+        defect = float(np.max(np.abs(np.asarray(sol["g"]).ravel()))) if np.all(np.isfinite(w)) else math.inf
+        x = self.transcription.to_stored(w)
+        solver_success = status in IPOPT_SUCCESS and defect <= self.options.feasibility_tol
+        verify = independent_defect(x, alpha, p.initial_state, p.terminal_state) if solver_success else math.nan
+        converged = bool(solver_success and verify <= self.options.verify_tol)
+        return SolveRecord(
+            status=status,
+            converged=converged,
+            solver_success=bool(solver_success),
+            x=x,
+            objective=-float(x[3]),
+            iterations=int(stats.get("iter_count", 0)),
+            wall_s=wall,
+            cpu_s=cpu,
+            defect=defect,
+            verify_defect=verify,
+        )

@@ -1,0 +1,252 @@
+"""Forward–backward shooting transcription of the low-thrust transfer in CasADi (spec §5, paper Eq. 28–31).
+
+Stored decision vector (64 entries for N = 20), in this order and these units::
+
+    x = (τ_s, τ_i, τ_f, m_f, θ_1, φ_1, ρ_1, …, θ_N, φ_N, ρ_N)
+        τ_* in TU, m_f in kg of fuel at the terminal state, θ ∈ [0, 2π], φ ∈ [−π/2, π/2], ρ ∈ [0, 1]
+
+Forward arc: from ξ₀ coast τ_i, then thrust segments 1 … N/2 (each τ_s/N).  Backward arc: from
+(ξ_f, m_f) coast τ_f backward, then segments N … N/2+1 backward.  The 7 match-point defects (position DU,
+velocity VU, fuel tonnes) are the equality constraints; the objective is −m_f.
+
+Internally the NLP variable ``w`` is this vector with m_f in tonnes (every state is O(1)), azimuths
+unbounded (wrapped to [0, 2π) on the way out), followed — with ``multiple_shooting`` — by the 7-states at the
+start of every sub-arc ("piece") after the first on each side, so that each piece is integrated
+independently: the constraint Jacobian and the Lagrangian Hessian become block-sparse and an exact Hessian
+is cheap.  Every piece is integrated with a fixed number of 8th-order Runge–Kutta steps (the DOP853
+tableau), time-scaled so that the step length follows the piece length: coasts are cut into
+``coast_pieces`` pieces of ``steps_per_coast / coast_pieces`` steps, thrust segments take
+``steps_per_segment`` steps each.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from scipy.integrate._ivp import dop853_coefficients as dop853
+
+from amorgs.problems.cr3bp import constants as K
+
+N_SEGMENTS = 20
+CORE_SIZE = 4 + 3 * N_SEGMENTS
+
+
+def variable_names(n_segments: int = N_SEGMENTS) -> tuple[str, ...]:
+    """Names of the stored decision variables: tau_s, tau_i, tau_f, m_f, theta_01, phi_01, rho_01, …"""
+    names = ["tau_s", "tau_i", "tau_f", "m_f"]
+    for k in range(1, n_segments + 1):
+        names += [f"theta_{k:02d}", f"phi_{k:02d}", f"rho_{k:02d}"]
+    return tuple(names)
+
+
+@dataclass(frozen=True)
+class TranscriptionOptions:
+    """Integration and layout choices; they do not change the stored 64-vector.
+
+    steps_per_segment: RK8 steps per thrust segment (length τ_s/N).
+    steps_per_coast: RK8 steps per coast arc (τ_i or τ_f), split evenly over ``coast_pieces``.
+    coast_pieces: sub-arcs per coast (each a shooting node when ``multiple_shooting``).
+    multiple_shooting: node states at every piece boundary (exact Hessian becomes sparse and cheap).
+    """
+
+    steps_per_segment: int = 24
+    steps_per_coast: int = 320
+    coast_pieces: int = 8
+    multiple_shooting: bool = False
+
+    def __post_init__(self) -> None:
+        for key in ("steps_per_segment", "steps_per_coast", "coast_pieces"):
+            if int(getattr(self, key)) < 1:
+                raise ValueError(f"transcription option {key} must be ≥ 1, got {getattr(self, key)}")
+        if self.steps_per_coast % self.coast_pieces:
+            raise ValueError(
+                f"transcription option steps_per_coast={self.steps_per_coast} must be a multiple of "
+                f"coast_pieces={self.coast_pieces}"
+            )
+
+
+def _rhs_sx() -> ca.Function:
+    """ξ̇ for the internal 7-state (DU, VU, tonnes) given u4 = (ρ·û, ρ) and p = (a_max, ṁ_max)."""
+    s = ca.SX.sym("s", 7)
+    u = ca.SX.sym("u", 4)
+    p = ca.SX.sym("p", 2)  # max thrust per tonne (t·DU/TU² → divide by wet tonnes), max fuel flow t/TU
+    mu = K.MU
+    x, y, z, vx, vy, vz, m = ca.vertsplit(s)
+    r1 = ca.sqrt((x + mu) ** 2 + y**2 + z**2)
+    r2 = ca.sqrt((x - 1 + mu) ** 2 + y**2 + z**2)
+    k1, k2 = (1 - mu) / r1**3, mu / r2**3
+    wet = K.DRY_MASS_KG / 1000 + m
+    ax = x - k1 * (x + mu) - k2 * (x - 1 + mu) + 2 * vy + p[0] * u[0] / wet
+    ay = y - k1 * y - k2 * y - 2 * vx + p[0] * u[1] / wet
+    az = -k1 * z - k2 * z + p[0] * u[2] / wet
+    return ca.Function("rhs", [s, u, p], [ca.vertcat(vx, vy, vz, ax, ay, az, -p[1] * u[3])])
+
+
+def _rk8_step(rhs: ca.Function) -> ca.Function:
+    """One DOP853 8th-order step of length h (SX, inlined stages)."""
+    s = ca.SX.sym("s", 7)
+    u = ca.SX.sym("u", 4)
+    p = ca.SX.sym("p", 2)
+    h = ca.SX.sym("h")
+    a, b = dop853.A, dop853.B
+    k = []
+    for i in range(dop853.N_STAGES):
+        si = s + h * sum((a[i, j] * k[j] for j in range(i) if a[i, j] != 0.0), ca.SX.zeros(7))
+        k.append(rhs(si, u, p))
+    s_next = s + h * sum(b[i] * k[i] for i in range(dop853.N_STAGES))
+    return ca.Function("rk8_step", [s, u, p, h], [s_next])
+
+
+def _piece(step: ca.Function, n_steps: int, name: str) -> ca.Function:
+    """Integrate n fixed steps over a duration dt (negative = backward): (s, u4, p, dt) → s."""
+    s = ca.MX.sym("s", 7)
+    u = ca.MX.sym("u", 4)
+    p = ca.MX.sym("p", 2)
+    dt = ca.MX.sym("dt")
+    acc = step.mapaccum(n_steps)
+    traj = acc(s, ca.repmat(u, 1, n_steps), ca.repmat(p, 1, n_steps), ca.repmat(dt / n_steps, 1, n_steps))
+    return ca.Function(name, [s, u, p, dt], [traj[:, -1]])
+
+
+def thrust_parameters(alpha: float | ca.MX) -> list:
+    """(a_max, ṁ_max) for the internal units: α N → t·DU/TU² and t/TU."""
+    return [alpha * K.thrust_nd(1.0) / 1000.0, alpha * K.mass_flow_kg_per_tu(1.0) / 1000.0]
+
+
+class ForwardBackwardTranscription:
+    """Builds the NLP ``min f(w; α) s.t. g(w; α) = 0, lbw ≤ w ≤ ubw`` and maps w ↔ the stored 64-vector.
+
+    ``initial_state`` is ξ₀ (x, y, z, vx, vy, vz, fuel kg); ``terminal_state`` is ξ_f (6 entries).
+    """
+
+    def __init__(self, initial_state, terminal_state, options: TranscriptionOptions | None = None):
+        self.options = options or TranscriptionOptions()
+        opt = self.options
+        self.n = N_SEGMENTS
+        self.xi0 = np.asarray(initial_state, float).copy()
+        self.xi0[6] /= 1000.0
+        self.xif = np.asarray(terminal_state, float)[:6].copy()
+        self.m0_t = float(self.xi0[6])
+        rhs = _rhs_sx()
+        step = _rk8_step(rhs)
+        self.coast_piece = _piece(step, opt.steps_per_coast // opt.coast_pieces, "coast_piece")
+        self.thrust_piece = _piece(step, opt.steps_per_segment, "thrust_piece")
+        self.kc = opt.coast_pieces
+        half = self.n // 2
+        # Pieces per chain: kc coast pieces then N/2 thrust segments.
+        self.pieces_per_chain = self.kc + half
+        self.n_nodes = 2 * (self.pieces_per_chain - 1) if opt.multiple_shooting else 0
+        self.n_w = CORE_SIZE + 7 * self.n_nodes
+        self._build()
+
+    # -- layout ---------------------------------------------------------------------------------------
+    def _controls(self, core):
+        """u4 for each segment (time order) from the core variables."""
+        us = []
+        for k in range(self.n):
+            th, ph, rho = core[4 + 3 * k], core[5 + 3 * k], core[6 + 3 * k]
+            us.append(ca.vertcat(rho * ca.cos(ph) * ca.cos(th), rho * ca.cos(ph) * ca.sin(th), rho * ca.sin(ph), rho))
+        return us
+
+    def _chain_specs(self, core, us):
+        """(kind, u4, dt) of every piece, forward chain then backward chain."""
+        tau_s, tau_i, tau_f = core[0], core[1], core[2]
+        zero = ca.MX.zeros(4)
+        half = self.n // 2
+        fwd = [("coast", zero, tau_i / self.kc)] * self.kc
+        fwd += [("thrust", us[k], tau_s / self.n) for k in range(half)]
+        bwd = [("coast", zero, -tau_f / self.kc)] * self.kc
+        bwd += [("thrust", us[k], -tau_s / self.n) for k in range(self.n - 1, half - 1, -1)]
+        return fwd, bwd
+
+    def _apply(self, kind, s, u, p, dt):
+        return (self.coast_piece if kind == "coast" else self.thrust_piece)(s, u, p, dt)
+
+    def _build(self) -> None:
+        w = ca.MX.sym("w", self.n_w)
+        alpha = ca.MX.sym("alpha")
+        p = ca.vertcat(*thrust_parameters(alpha))
+        core = w[:CORE_SIZE]
+        us = self._controls(core)
+        fwd, bwd = self._chain_specs(core, us)
+        start_f = ca.DM(self.xi0)
+        start_b = ca.vertcat(ca.DM(self.xif), core[3])
+        g = []
+        if self.options.multiple_shooting:
+            nodes = ca.reshape(w[CORE_SIZE:], 7, self.n_nodes)
+            m = self.pieces_per_chain - 1
+            ends = []
+            for chain, start, node_cols in ((fwd, start_f, range(0, m)), (bwd, start_b, range(m, 2 * m))):
+                starts = [start] + [nodes[:, j] for j in node_cols]
+                chain_ends = [self._apply(kind, s, u, p, dt) for (kind, u, dt), s in zip(chain, starts)]
+                g += [e - s for e, s in zip(chain_ends[:-1], starts[1:])]
+                ends.append(chain_ends[-1])
+            end_f, end_b = ends
+        else:
+            end_f, end_b = start_f, start_b
+            for kind, u, dt in fwd:
+                end_f = self._apply(kind, end_f, u, p, dt)
+            for kind, u, dt in bwd:
+                end_b = self._apply(kind, end_b, u, p, dt)
+        match = end_b - end_f
+        self.nlp = {"x": w, "p": alpha, "f": -core[3], "g": ca.vertcat(*g, match)}
+        self.n_g = 7 * (len(g) + 1)
+        # Node initialisation: the single-shooting states at every piece start, as one Function.
+        x64 = ca.MX.sym("x", CORE_SIZE)
+        us64 = self._controls(x64)
+        fwd64, bwd64 = self._chain_specs(x64, us64)
+        node_states = []
+        match64 = []
+        for chain, start in ((fwd64, start_f), (bwd64, ca.vertcat(ca.DM(self.xif), x64[3]))):
+            s = start
+            for i, (kind, u, dt) in enumerate(chain):
+                s = self._apply(kind, s, u, p, dt)
+                if i < len(chain) - 1:
+                    node_states.append(s)
+            match64.append(s)
+        self.node_init = ca.Function(
+            "node_init", [x64, alpha], [ca.horzcat(*node_states) if node_states else ca.DM.zeros(7, 0)]
+        )
+        self.match_defect_fn = ca.Function("match_defect", [x64, alpha], [match64[1] - match64[0]])
+
+    # -- bounds and conversions -----------------------------------------------------------------------
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Box bounds on w: spec §5 on the core (azimuths free), node masses in [0, m₀], others free."""
+        lo = np.full(self.n_w, -np.inf)
+        hi = np.full(self.n_w, np.inf)
+        lo[:4] = [0.0, 0.0, 0.0, 0.0]
+        hi[:4] = [40.0, 15.0, 15.0, self.m0_t]
+        for k in range(self.n):
+            lo[5 + 3 * k], hi[5 + 3 * k] = -math.pi / 2, math.pi / 2
+            lo[6 + 3 * k], hi[6 + 3 * k] = 0.0, 1.0
+        if self.n_nodes:
+            mass = CORE_SIZE + 6 + 7 * np.arange(self.n_nodes)
+            lo[mass], hi[mass] = 0.0, self.m0_t
+        return lo, hi
+
+    def to_internal(self, x: np.ndarray, alpha: float) -> np.ndarray:
+        """Stored 64-vector (m_f in kg) → w, with node states from single-shooting propagation."""
+        core = np.asarray(x, float).copy()
+        core[3] /= 1000.0
+        if not self.n_nodes:
+            return core
+        nodes = np.asarray(self.node_init(core, alpha)).reshape(-1, order="F")
+        return np.concatenate([core, nodes])
+
+    def to_stored(self, w: np.ndarray) -> np.ndarray:
+        """w → stored 64-vector: m_f in kg, θ wrapped to [0, 2π), φ and ρ clipped to their bounds."""
+        x = np.asarray(w, float)[:CORE_SIZE].copy()
+        x[3] *= 1000.0
+        x[4::3] = np.mod(x[4::3], 2 * math.pi)
+        x[5::3] = np.clip(x[5::3], -math.pi / 2, math.pi / 2)
+        x[6::3] = np.clip(x[6::3], 0.0, 1.0)
+        return x
+
+    def match_defect(self, x: np.ndarray, alpha: float) -> np.ndarray:
+        """Single-shooting match-point defect of a stored vector with this transcription's integrator."""
+        core = np.asarray(x, float).copy()
+        core[3] /= 1000.0
+        return np.asarray(self.match_defect_fn(core, alpha)).ravel()
