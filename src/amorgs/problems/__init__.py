@@ -2,13 +2,26 @@
 
 from __future__ import annotations
 
+import importlib
+
 from amorgs.problems.base import LocalSolver, Problem, SolveRecord
 
 PROBLEMS = ("dejong", "cr3bp")
 
 
 def get_problem(name: str) -> Problem:
-    """Return the problem family called ``name``; raises ``ValueError`` naming the valid choices."""
+    """Return the problem family called ``name``; raises ``ValueError`` naming the valid choices.
+
+    Besides the built-in names, ``"package.module:ClassName"`` loads a user-defined problem class that
+    follows :class:`Problem` (instantiated without arguments) — the extension point for new families.
+    """
+    if ":" in name:
+        module_name, _, class_name = name.partition(":")
+        try:
+            cls = getattr(importlib.import_module(module_name), class_name)
+        except (ImportError, AttributeError) as exc:
+            raise ValueError(f"cannot load problem {name!r}: {exc}") from None
+        return cls()
     if name == "dejong":
         from amorgs.problems.dejong import DeJong5
 

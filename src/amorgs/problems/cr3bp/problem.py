@@ -149,12 +149,17 @@ class IpoptSolver:
             self._jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
             opts.update(
                 jit=True,
-                jit_name=os.path.join(self._jit_dir.name, "cr3bp"),
-                jit_temp_suffix=False,
                 compiler="shell",
                 jit_options={"flags": ["-O2"], "verbose": False, "directory": self._jit_dir.name},
             )
-        self.nlpsol = ca.nlpsol("cr3bp", "ipopt", self.transcription.nlp, opts)
+        # CasADi writes the JIT source into the working directory: build inside a private temp dir.
+        cwd = os.getcwd()
+        try:
+            if options.jit:
+                os.chdir(self._jit_dir.name)
+            self.nlpsol = ca.nlpsol("cr3bp", "ipopt", self.transcription.nlp, opts)
+        finally:
+            os.chdir(cwd)
         self.build_s = time.perf_counter() - t0
 
     def solve(self, x0: np.ndarray, alpha: float) -> SolveRecord:

@@ -1,0 +1,214 @@
+"""Parallel multi-start: solve many initial guesses of one (problem, α) across worker processes.
+
+Design (see DESIGN.md §4): CasADi objects do not pickle and IPOPT is not thread-safe, so every worker is a
+*spawned process* that builds its own local solver once and then solves the guesses it is sent.  The
+guesses are drawn in the parent from ``numpy.random.default_rng(seed)`` before any work starts, and every
+solve is deterministic (iteration cap first, wall cap only as a safety net), so the table is identical for
+any number of workers.  A worker that crashes or hangs past ``hard_timeout_s`` is killed and replaced; its
+guess becomes one row with status ``crashed`` / ``timeout`` — it never takes the job down.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import multiprocessing as mp
+import os
+import sys
+import time
+from multiprocessing.connection import wait
+
+import numpy as np
+import pandas as pd
+
+from amorgs.problems import SolveRecord, get_problem
+
+BUILD_TIMEOUT_S = 900.0
+_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def options_digest(problem: str, solver_options: dict | None) -> str:
+    """Stable short hash of (problem, options) for solvers that do not define their own."""
+    text = json.dumps({"problem": problem, "options": solver_options or {}}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def _worker(conn, problem_name: str, solver_options: dict | None) -> None:
+    """Worker loop: build the solver, announce readiness, then answer (index, x0, alpha) tasks."""
+    try:
+        solver = get_problem(problem_name).make_local_solver(solver_options)
+        digest = getattr(solver, "options_hash", None) or options_digest(problem_name, solver_options)
+        conn.send(("ready", digest, float(getattr(solver, "build_s", 0.0))))
+    except Exception as exc:  # configuration errors surface in the parent with their message
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        return
+    while True:
+        task = conn.recv()
+        if task is None:
+            return
+        index, x0, alpha = task
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        try:
+            record = solver.solve(x0, alpha)
+        except Exception as exc:  # a bug or numerical blow-up in one solve costs one row
+            record = SolveRecord(
+                status="exception", converged=False, solver_success=False, x=np.full(len(x0), np.nan),
+                wall_s=time.perf_counter() - wall0, cpu_s=time.process_time() - cpu0,
+                message=f"{type(exc).__name__}: {exc}"[:200],
+            )
+        conn.send(("done", index, record))
+
+
+class _Slot:
+    """One worker process and the task it is working on."""
+
+    def __init__(self, ctx, problem: str, solver_options: dict | None):
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_worker, args=(child, problem, solver_options), daemon=True)
+        self.proc.start()
+        child.close()
+        self.ready = False
+        self.task: int | None = None
+        self.since = time.monotonic()
+
+    def kill(self) -> None:
+        if self.proc.is_alive():
+            self.proc.kill()
+        self.proc.join(5)
+        self.conn.close()
+
+
+def solve_guesses(
+    problem: str,
+    alpha: float,
+    guesses: np.ndarray,
+    workers: int = 1,
+    solver_options: dict | None = None,
+    hard_timeout_s: float | None = None,
+    progress: bool = True,
+    label: str = "",
+) -> tuple[list[SolveRecord], dict]:
+    """Solve every row of ``guesses`` at ``alpha``; returns records in input order and run info.
+
+    ``hard_timeout_s`` (default: 2 × the solver's ``max_wall_s`` + 30 s, or 600 s) kills a stuck worker.
+    """
+    prob = get_problem(problem)
+    guesses = np.asarray(guesses, float)
+    for i, g in enumerate(guesses):
+        try:
+            prob.check_guess(g)
+        except ValueError as exc:
+            raise ValueError(f"guess #{i}: {exc}") from None
+    if workers < 1:
+        raise ValueError(f"workers must be ≥ 1, got {workers}")
+    if hard_timeout_s is None:
+        cap = (solver_options or {}).get("max_wall_s", 270.0)
+        hard_timeout_s = 2 * float(cap) + 30.0
+    n = len(guesses)
+    records: list[SolveRecord | None] = [None] * n
+    info = {"build_s": [], "options_hash": None, "replaced_workers": 0}
+    for key in _THREAD_ENV:
+        os.environ.setdefault(key, "1")
+    ctx = mp.get_context("spawn")
+    pending = list(range(n))[::-1]
+    slots = [_Slot(ctx, problem, solver_options) for _ in range(min(workers, max(n, 1)))]
+    done = converged = 0
+    t_start = time.monotonic()
+
+    def dispatch(slot: _Slot) -> None:
+        if pending:
+            slot.task = pending.pop()
+            slot.since = time.monotonic()
+            slot.conn.send((slot.task, guesses[slot.task], alpha))
+        else:
+            slot.task = None
+            slot.conn.send(None)
+
+    def failed(index: int, status: str, elapsed: float) -> SolveRecord:
+        return SolveRecord(status=status, converged=False, solver_success=False, x=np.full(guesses.shape[1], np.nan),
+                           wall_s=elapsed, cpu_s=math.nan, message=f"worker {status}")
+
+    try:
+        while done < n:
+            ready = wait([s.conn for s in slots] + [s.proc.sentinel for s in slots], timeout=1.0)
+            for slot in list(slots):
+                msg = None
+                if slot.conn in ready or (slot.proc.sentinel in ready and slot.conn.poll()):
+                    try:
+                        msg = slot.conn.recv()
+                    except (EOFError, OSError):
+                        msg = None
+                if msg is not None:
+                    if msg[0] == "error":
+                        raise ValueError(f"{problem} solver could not be built: {msg[1]}")
+                    if msg[0] == "ready":
+                        slot.ready = True
+                        info["options_hash"] = msg[1]
+                        info["build_s"].append(msg[2])
+                        dispatch(slot)
+                        continue
+                    _, index, record = msg
+                    records[index] = record
+                    done += 1
+                    converged += bool(record.converged)
+                    if progress:
+                        rate = (time.monotonic() - t_start) / done
+                        print(f"[{label or problem} α={alpha:g}] {done}/{n} solved, {converged} converged, "
+                              f"{rate:.1f} s/solve wall", file=sys.stderr, flush=True)
+                    dispatch(slot)
+                    continue
+                elapsed = time.monotonic() - slot.since
+                dead = not slot.proc.is_alive()
+                limit = hard_timeout_s if slot.ready else BUILD_TIMEOUT_S
+                if slot.task is not None and (dead or elapsed > limit):
+                    records[slot.task] = failed(slot.task, "crashed" if dead else "timeout", elapsed)
+                    done += 1
+                    info["replaced_workers"] += 1
+                    slot.kill()
+                    slots.remove(slot)
+                    if pending:
+                        slots.append(_Slot(ctx, problem, solver_options))
+                elif not slot.ready and (dead or elapsed > limit):
+                    raise RuntimeError(f"{problem} worker failed to start (exit code {slot.proc.exitcode})")
+    finally:
+        for slot in slots:
+            slot.kill()
+    return records, info  # type: ignore[return-value]
+
+
+def run_multistart(
+    problem: str,
+    alpha: float,
+    seed: int,
+    n_starts: int,
+    workers: int = 1,
+    solver_options: dict | None = None,
+    progress: bool = True,
+    hard_timeout_s: float | None = None,
+) -> pd.DataFrame:
+    """``n_starts`` uniform guesses drawn with ``default_rng(seed)``, solved; one row per start.
+
+    Columns: problem, alpha, seed, start, guess_<var>…, <var>…, status, converged, solver_success,
+    objective, iterations, wall_s, cpu_s, defect, verify_defect, message, options_hash.
+    """
+    prob = get_problem(problem)
+    guesses = prob.sample_uniform(alpha, n_starts, np.random.default_rng(seed))
+    records, info = solve_guesses(problem, alpha, guesses, workers, solver_options, hard_timeout_s, progress)
+    return records_table(problem, alpha, seed, guesses, records, prob.variable_names, info["options_hash"])
+
+
+def records_table(problem, alpha, seed, guesses, records, names, options_hash) -> pd.DataFrame:
+    """Assemble solve records and their guesses into the solution-table layout (docs/data-format.md)."""
+    rows = []
+    for i, (g, r) in enumerate(zip(guesses, records)):
+        row = {"problem": problem, "alpha": float(alpha), "seed": int(seed), "start": i}
+        row.update({f"guess_{k}": float(v) for k, v in zip(names, g)})
+        row.update(r.to_row(names))
+        row["options_hash"] = options_hash
+        rows.append(row)
+    df = pd.DataFrame(rows)
+    if not rows:
+        return df
+    order = ["problem", "alpha", "seed", "start", *[f"guess_{k}" for k in names], *names]
+    return df[order + [c for c in df.columns if c not in order]]
