@@ -1,0 +1,98 @@
+"""Real IPOPT solves of the LT-CR3BP transcription, verified by independent re-propagation."""
+
+import math
+
+import numpy as np
+import pytest
+
+from amorgs.problems import get_problem
+from amorgs.problems.cr3bp.propagation import match_defect, propagate
+from amorgs.problems.cr3bp.transcription import variable_names
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return get_problem("cr3bp")
+
+
+@pytest.fixture(scope="module")
+def solver(problem):
+    return problem.make_local_solver({"max_iter": 400})
+
+
+@pytest.fixture(scope="module")
+def solution(problem, solver):
+    guesses = problem.sample_uniform(1.0, 8, np.random.default_rng(0))
+    for x0 in guesses:
+        record = solver.solve(x0, 1.0)
+        if record.converged:
+            return record
+    pytest.fail("none of 8 uniform starts converged at α = 1.0")
+
+
+def test_layout():
+    names = variable_names()
+    assert len(names) == 64
+    assert names[:5] == ("tau_s", "tau_i", "tau_f", "m_f", "theta_01") and names[-1] == "rho_20"
+
+
+def test_encode_decode_round_trip(problem, solver):
+    x = problem.sample_uniform(0.5, 3, np.random.default_rng(3))
+    for xi in x:
+        back = solver.transcription.to_stored(solver.transcription.to_internal(xi, 0.5))
+        np.testing.assert_allclose(back, xi, rtol=1e-12, atol=1e-12)
+
+
+def test_converged_solution_is_verified_and_physical(problem, solution):
+    assert solution.solver_success and solution.converged
+    assert solution.defect <= 1e-8
+    assert solution.verify_defect <= 1e-5
+    assert 380.0 <= solution.x[3] <= problem.initial_state[6]
+    assert solution.objective == pytest.approx(-solution.x[3])
+    assert solution.iterations > 0 and solution.wall_s > 0 and solution.cpu_s > 0
+    problem.check_guess(solution.x)  # stored solution respects the spec's bounds
+
+
+def test_rk8_transcription_agrees_with_dop853(problem, solver, solution):
+    ref = match_defect(solution.x, 1.0, problem.initial_state, problem.terminal_state)
+    ours = solver.transcription.match_defect(solution.x, 1.0)
+    assert np.max(np.abs(ours - ref)) <= 1e-6
+
+
+def test_dense_trajectory(problem, solution):
+    traj = propagate(solution.x, 1.0, problem.initial_state, problem.terminal_state)
+    assert np.all(np.diff(traj.t) >= -1e-12)
+    assert traj.t[-1] == pytest.approx(solution.x[:3].sum())
+    np.testing.assert_allclose(traj.states[:6, 0], problem.initial_state[:6], atol=1e-12)
+    np.testing.assert_allclose(traj.states[:6, -1], problem.terminal_state[:6], atol=1e-12)
+    assert np.max(np.abs(traj.match_defect)) <= 1e-5
+    assert traj.states[6, -1] == pytest.approx(solution.x[3])
+
+
+def test_iteration_cap_gives_a_record_not_an_exception(problem):
+    capped = problem.make_local_solver({"max_iter": 2})
+    record = capped.solve(problem.sample_uniform(0.3, 1, np.random.default_rng(1))[0], 0.3)
+    assert record.status == "Maximum_Iterations_Exceeded"
+    assert not record.converged and record.iterations == 2 and math.isfinite(record.wall_s)
+
+
+@pytest.mark.parametrize(
+    "alpha, mutate, field",
+    [
+        (0.05, None, "alpha"),
+        (1.5, None, "alpha"),
+        (0.5, lambda x: x[:10], "length 64"),
+        (0.5, lambda x: np.r_[x[:5], np.nan, x[6:]], "phi_01"),
+        (0.5, lambda x: np.r_[x[:6], 1.5, x[7:]], "rho_01"),
+        (0.5, lambda x: np.r_[50.0, x[1:]], "tau_s"),
+        (0.5, lambda x: np.r_[x[:2], np.inf, x[3:]], "tau_f"),
+    ],
+)
+def test_bad_input_is_a_clear_value_error(problem, solver, alpha, mutate, field):
+    x0 = problem.sample_uniform(0.5, 1, np.random.default_rng(2))[0]
+    if mutate is not None:
+        x0 = mutate(x0)
+    with pytest.raises(ValueError, match=field):
+        solver.solve(x0, alpha)
