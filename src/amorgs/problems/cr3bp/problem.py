@@ -43,7 +43,7 @@ class SolverOptions:
 
     hessian: str = "limited-memory"  # or "exact"
     lbfgs_memory: int = 30
-    max_iter: int = 300
+    max_iter: int = 1000
     max_wall_s: float = 60.0
     tol: float = 1e-6
     acceptable_tol: float = 1e-4
@@ -149,6 +149,7 @@ class IpoptSolver:
             self._jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
             opts.update(
                 jit=True,
+                jit_cleanup=False,  # the temp dir goes away with the solver
                 compiler="shell",
                 jit_options={"flags": ["-O2"], "verbose": False, "directory": self._jit_dir.name},
             )
