@@ -72,7 +72,7 @@ def test_dense_trajectory(problem, solution):
 
 
 def test_iteration_cap_gives_a_record_not_an_exception(problem):
-    capped = problem.make_local_solver({"max_iter": 2, "jit": False})
+    capped = problem.make_local_solver({"max_iter": 2, "compile": "none"})
     record = capped.solve(problem.sample_uniform(0.3, 1, np.random.default_rng(1))[0], 0.3)
     assert record.status == "Maximum_Iterations_Exceeded"
     assert not record.converged and record.iterations == 2 and math.isfinite(record.wall_s)

@@ -11,9 +11,12 @@ import hashlib
 import json
 import math
 import os
+import platform
+import subprocess
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -51,7 +54,7 @@ class SolverOptions:
     feasibility_tol: float = 1e-8
     verify_tol: float = VERIFY_TOLERANCE
     linear_solver: str = "mumps"
-    jit: bool = True
+    compile: str = "cache"  # "cache": C code compiled once per machine; "jit": per process; "none"
     transcription: TranscriptionOptions = field(default_factory=TranscriptionOptions)
 
     @classmethod
@@ -70,6 +73,8 @@ class SolverOptions:
                 raise ValueError(f"unknown cr3bp transcription option(s) {bad}; known: {sorted(tknown)}")
             tr = TranscriptionOptions(**tr)
         opts = cls(transcription=tr, **options)
+        if opts.compile not in ("cache", "jit", "none"):
+            raise ValueError(f"cr3bp solver option compile must be 'cache', 'jit' or 'none', got {opts.compile!r}")
         if opts.hessian not in ("exact", "limited-memory"):
             raise ValueError(f"cr3bp solver option hessian must be 'exact' or 'limited-memory', got {opts.hessian!r}")
         return opts
@@ -117,6 +122,53 @@ class LowThrustTransfer:
         return IpoptSolver(self, opts)
 
 
+def cache_dir() -> Path:
+    """Where compiled NLP libraries are kept: ``$AMORGS_CACHE_DIR`` or ``~/.cache/amorgs``."""
+    return Path(os.environ.get("AMORGS_CACHE_DIR", Path.home() / ".cache" / "amorgs"))
+
+
+def compiled_nlp_library(transcription: ForwardBackwardTranscription, options: SolverOptions, problem) -> Path:
+    """Shared library with the NLP functions IPOPT needs, generated and compiled once per machine.
+
+    The key covers everything compiled into the code: transcription options, Hessian mode, boundary
+    conditions (embedded as constants), CasADi version and CPU architecture.  Concurrent workers may race
+    to build it; each compiles into a private temp file and ``os.replace`` makes the winner atomic.
+    """
+    key = json.dumps(
+        {
+            "transcription": asdict(options.transcription),
+            "hessian": options.hessian,
+            "initial": problem.initial_state.tolist(),
+            "terminal": problem.terminal_state.tolist(),
+            "casadi": ca.__version__,
+            "machine": platform.machine(),
+            "format": 1,
+        },
+        sort_keys=True,
+    )
+    target = cache_dir() / f"cr3bp_nlp_{hashlib.sha256(key.encode()).hexdigest()[:16]}.so"
+    if target.is_file():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    opts = {"ipopt": {"hessian_approximation": options.hessian}}
+    plain = ca.nlpsol("cr3bp", "ipopt", transcription.nlp, opts)
+    with tempfile.TemporaryDirectory(prefix="amorgs-codegen-", dir=target.parent) as tmp:
+        cwd = os.getcwd()
+        try:
+            os.chdir(tmp)
+            plain.generate_dependencies("cr3bp_nlp.c")
+        finally:
+            os.chdir(cwd)
+        built = Path(tmp) / target.name
+        subprocess.run(
+            ["gcc", "-O2", "-fPIC", "-shared", str(Path(tmp) / "cr3bp_nlp.c"), "-o", str(built), "-lm"],
+            check=True,
+            capture_output=True,
+        )
+        os.replace(built, target)
+    return target
+
+
 class IpoptSolver:
     """IPOPT on the forward–backward transcription; build inside the process that uses it."""
 
@@ -145,22 +197,22 @@ class IpoptSolver:
             "sb": "yes",
         }
         opts = {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
-        if options.jit:
+        if options.compile == "cache":
+            library = compiled_nlp_library(self.transcription, options, problem)
+            self.nlpsol = ca.nlpsol("cr3bp", "ipopt", str(library), opts)
+        elif options.compile == "jit":
+            # CasADi writes the JIT source into the working directory: build inside a private temp dir.
             self._jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
-            opts.update(
-                jit=True,
-                jit_cleanup=False,  # the temp dir goes away with the solver
-                compiler="shell",
-                jit_options={"flags": ["-O2"], "verbose": False, "directory": self._jit_dir.name},
-            )
-        # CasADi writes the JIT source into the working directory: build inside a private temp dir.
-        cwd = os.getcwd()
-        try:
-            if options.jit:
+            opts.update(jit=True, jit_cleanup=False, compiler="shell",
+                        jit_options={"flags": ["-O2"], "verbose": False, "directory": self._jit_dir.name})
+            cwd = os.getcwd()
+            try:
                 os.chdir(self._jit_dir.name)
+                self.nlpsol = ca.nlpsol("cr3bp", "ipopt", self.transcription.nlp, opts)
+            finally:
+                os.chdir(cwd)
+        else:
             self.nlpsol = ca.nlpsol("cr3bp", "ipopt", self.transcription.nlp, opts)
-        finally:
-            os.chdir(cwd)
         self.build_s = time.perf_counter() - t0
 
     def solve(self, x0: np.ndarray, alpha: float) -> SolveRecord:
