@@ -132,7 +132,8 @@ def cmd_train_dejong_cvae(args: argparse.Namespace) -> None:
     df = pd.read_parquet(args.data)
     train_labels = {alpha_label(a) for a in args.train_alphas}
     df = df[df["alpha"].map(alpha_label).isin(train_labels)]
-    x, alpha = df[names].to_numpy(dtype=np.float64), df["alpha"].to_numpy(dtype=np.float64)
+    x = df[names].to_numpy(dtype=np.float64, copy=True)
+    alpha = df["alpha"].to_numpy(dtype=np.float64, copy=True)
     with tracking.job_run("train_dejong_cvae", {"problem": "dejong", "model": "cvae_gmm"}) as run:
         cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.learning_rate, seed=args.seed, device="cpu")
         run.log_params({"preset": args.preset, "rows": len(df), "train_alphas": len(train_labels), **vars(cfg)})
@@ -167,8 +168,9 @@ def cmd_predict_dejong_cvae(args: argparse.Namespace) -> None:
             frame.insert(0, "alpha", alpha)
             frame.insert(1, "sample", range(len(frame)))
             frames.append(frame)
-            metrics[alpha_label(alpha)] = {"alpha": alpha, **prediction_metrics(samples, alpha, radius=args.radius)}
-            run.log_metrics({f"{k}/{_alpha_key(alpha)}": v for k, v in metrics[alpha_label(alpha)].items() if k != "alpha"})
+            scores = prediction_metrics(samples, alpha, radius=args.radius)
+            metrics[alpha_label(alpha)] = {"alpha": alpha, **scores}
+            run.log_metrics({f"{k}/{_alpha_key(alpha)}": v for k, v in scores.items() if k not in ("n_samples", "radius")})
         write_parquet(pd.concat(frames, ignore_index=True), args.samples)
         write_json({"radius": args.radius, "n_samples": args.n_samples, "per_alpha": metrics}, args.metrics)
         run.log_artifact(args.metrics)

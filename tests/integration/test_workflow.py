@@ -1,0 +1,209 @@
+"""The real workflow: lint, dry runs, config errors, the smoke run with MLflow, and an interrupted run.
+
+Each test copies the Snakefile, workflow/ and config/ into a temporary directory and runs the real
+``snakemake`` there, so the repository's own results/ are never touched.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from amorgs.data.tables import TIMING_COLUMNS
+
+ROOT = Path(__file__).resolve().parents[2]
+SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
+# pytest's marker variable switches MLflow into its own self-test mode; the jobs must run as in production.
+ENV = {k: v for k, v in os.environ.items() if k != "PYTEST_CURRENT_TEST"}
+
+
+def workdir(tmp_path: Path, config: dict | None = None) -> Path:
+    """A copy of the workflow in ``tmp_path/wf``; ``config`` (if given) is written to config/test.yaml."""
+    wd = tmp_path / "wf"
+    wd.mkdir(parents=True)
+    shutil.copy(ROOT / "Snakefile", wd)
+    for d in ("workflow", "config"):
+        shutil.copytree(ROOT / d, wd / d)
+    if config is not None:
+        (wd / "config" / "test.yaml").write_text(yaml.safe_dump(config))
+    return wd
+
+
+def smoke_config() -> dict:
+    return yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+
+
+def snakemake(wd: Path, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    return subprocess.run([SNAKEMAKE, *args], cwd=wd, capture_output=True, text=True, timeout=timeout, env=ENV)
+
+
+def test_lint_is_clean():
+    res = snakemake(ROOT, "--lint")
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "Congratulations, your workflow is in a good condition" in res.stdout + res.stderr
+
+
+def test_slurm_profile_dry_run(tmp_path):
+    wd = workdir(tmp_path)
+    res = snakemake(wd, "-n", "--profile", "workflow/profiles/slurm", "--configfile", "config/paper.yaml")
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out
+    assert "generate" in out and "filter" in out and "train_dejong_cvae" in out
+    # cr3bp generate jobs ask for the runtime and memory of config/paper.yaml
+    assert "runtime=1440" in out and "mem_mb=16000" in out
+
+
+def test_unknown_config_key_fails_at_start(tmp_path):
+    cfg = smoke_config()
+    cfg["problems"]["dejong"]["generate"]["startz_per_shard"] = 3
+    wd = workdir(tmp_path, cfg)
+    res = snakemake(wd, "-n", "--configfile", "config/test.yaml")
+    out = res.stdout + res.stderr
+    assert res.returncode != 0
+    assert "config/test.yaml: problems.dejong.generate" in out
+    assert "'startz_per_shard' was unexpected" in out
+    assert not (wd / "results").exists()
+
+
+def test_config_override_is_validated(tmp_path):
+    wd = workdir(tmp_path)
+    res = snakemake(wd, "-n", "--configfile", "config/smoke.yaml", "--config", "seed=-1")
+    assert res.returncode != 0
+    assert "merged config" in res.stderr + res.stdout and "seed: -1 is less than the minimum of 0" in res.stderr + res.stdout
+
+
+def _tables(wd: Path) -> dict[str, pd.DataFrame]:
+    """Every parquet table under results/, timing columns dropped."""
+    out = {}
+    for p in sorted((wd / "results").rglob("*.parquet")):
+        df = pd.read_parquet(p)
+        out[str(p.relative_to(wd))] = df.drop(columns=[c for c in TIMING_COLUMNS if c in df.columns])
+    return out
+
+
+@pytest.mark.slow
+def test_smoke_workflow_tracks_every_job(tmp_path):
+    from mlflow.tracking import MlflowClient
+
+    from amorgs.checks import expected_jobs
+    from amorgs.config import load_config
+
+    wd = workdir(tmp_path)
+    res = snakemake(wd, "--profile", "workflow/profiles/default", "--configfile", "config/smoke.yaml", timeout=900)
+    assert res.returncode == 0, res.stdout[-5000:] + res.stderr[-5000:]
+
+    check = subprocess.run(
+        [sys.executable, "-m", "amorgs", "check-outputs", "--config", "config/smoke.yaml"],
+        cwd=wd, capture_output=True, text=True, env=ENV,
+    )
+    assert check.returncode == 0, check.stdout + check.stderr
+
+    for log in (wd / "logs").rglob("*.log"):
+        assert "database is locked" not in log.read_text(), log
+
+    cfg = load_config(wd / "config" / "smoke.yaml", wd / "workflow" / "schemas" / "config.schema.yaml")
+    client = MlflowClient(f"sqlite:///{wd / 'results' / 'mlflow' / 'mlflow.db'}")
+    exp = client.get_experiment_by_name(cfg.mlflow.experiment)
+    parents = client.search_runs([exp.experiment_id], filter_string="tags.kind = 'workflow'")
+    assert len(parents) == 1 and parents[0].info.status == "FINISHED"
+    parent = parents[0]
+    assert parent.data.tags["config_hash"] == cfg.hash
+    assert parent.data.params["problems.dejong.generate.starts_per_shard"] == "40"
+    children = client.search_runs(
+        [exp.experiment_id], filter_string=f"tags.mlflow.parentRunId = '{parent.info.run_id}'", max_results=1000
+    )
+    expected = sorted((rule, json.dumps(w, sort_keys=True)) for rule, w in expected_jobs(cfg))
+    assert sorted((c.data.tags["rule"], c.data.tags["wildcards"]) for c in children) == expected
+    for child in children:
+        tags = child.data.tags
+        assert child.info.status == "FINISHED"
+        assert tags["config_hash"] == cfg.hash
+        assert {"git_commit", "version.torch", "version.casadi", "version.numpy", "version.snakemake", "version.mlflow"} <= set(tags)
+    by_rule = {c.data.tags["rule"]: c for c in children}
+    assert 0 < by_rule["generate"].data.metrics["converged_fraction"] <= 1
+    assert by_rule["filter"].data.metrics["high_quality"] > 0
+    train = by_rule["train_dejong_cvae"]
+    history = client.get_metric_history(train.info.run_id, "loss")
+    assert [m.step for m in history] == list(range(1, cfg.dejong_cvae.epochs + 1))
+    predict = by_rule["predict_dejong_cvae"].data.metrics
+    for label in ("0.349", "0.698", "1.047", "1.396"):
+        assert 0 <= predict[f"fraction_within_radius/alpha_{label}"] <= 1
+        assert 0 <= predict[f"minima_covered/alpha_{label}"] <= 8
+    for name in ("fig02_foxholes", "fig16_dejong_predictions"):
+        artifacts = [a.path for a in client.list_artifacts(by_rule[name].info.run_id, "figures")]
+        assert artifacts == [f"figures/{name}.png"]
+
+    res = snakemake(wd, "--report", "report.html", "--configfile", "config/smoke.yaml")
+    assert res.returncode == 0, res.stderr[-3000:]
+    report = (wd / "report.html").read_text()
+    assert "fig02_foxholes.png" in report and "fig16_dejong_predictions.png" in report
+
+    # Losing the MLflow store never breaks a rebuild: it is recreated and the outputs come back.
+    shutil.rmtree(wd / "results" / "mlflow")
+    (wd / "results" / "figures" / "fig02_foxholes.png").unlink()
+    res = snakemake(wd, "--cores", "2", "--configfile", "config/smoke.yaml")
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert (wd / "results" / "figures" / "fig02_foxholes.png").stat().st_size > 0
+    res = snakemake(wd, "-n", "--configfile", "config/smoke.yaml")
+    assert "Nothing to be done" in res.stdout + res.stderr
+
+
+def _interrupt_config() -> dict:
+    cfg = smoke_config()
+    cfg["problems"]["dejong"]["alphas"] = {"train": [0.2], "test": []}
+    cfg["problems"]["dejong"]["generate"].update(shards=3, starts_per_shard=30)
+    cfg["problems"]["cr3bp"]["enabled"] = False
+    cfg["dejong_cvae"]["enabled"] = False
+    return cfg
+
+
+@pytest.mark.slow
+def test_killed_run_resumes_without_losing_or_duplicating_rows(tmp_path):
+    from mlflow.tracking import MlflowClient
+
+    cfg = _interrupt_config()
+    untracked = {**cfg, "mlflow": {**cfg["mlflow"], "enabled": False}}  # tracking never changes a table
+    # the data stages, with the default profile (2 cores, --rerun-incomplete)
+    run = ["results/dejong/high_quality.parquet", "--profile", "workflow/profiles/default", "--configfile", "config/test.yaml"]
+    ref = workdir(tmp_path / "ref", untracked)
+    res = snakemake(ref, *run)
+    assert res.returncode == 0, res.stderr[-3000:]
+
+    wd = workdir(tmp_path / "killed", cfg)
+    proc = subprocess.Popen(
+        [SNAKEMAKE, *run],
+        cwd=wd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True, env=ENV,
+    )
+    deadline = time.monotonic() + 300
+    solutions = wd / "results" / "dejong" / "solutions"
+    while not list(solutions.glob("alpha=*/shard-*.parquet")) and time.monotonic() < deadline:
+        assert proc.poll() is None, "the workflow ended before any shard landed"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)  # snakemake and every job it started
+    proc.wait()
+    assert not (wd / "results" / "dejong" / "high_quality.parquet").exists(), "killed too late to test anything"
+
+    assert snakemake(wd, "--unlock", "--configfile", "config/test.yaml").returncode == 0
+    res = snakemake(wd, *run)
+    assert res.returncode == 0, res.stderr[-3000:]
+
+    got, want = _tables(wd), _tables(ref)
+    assert sorted(got) == sorted(want)
+    for name, df in want.items():
+        pd.testing.assert_frame_equal(got[name], df, check_exact=True, obj=name)
+    assert len(want["results/dejong/solutions/alpha=0.200.parquet"]) == 90
+
+    client = MlflowClient(f"sqlite:///{wd / 'results' / 'mlflow' / 'mlflow.db'}")
+    exp = client.get_experiment_by_name(cfg["mlflow"]["experiment"])
+    statuses = sorted(r.info.status for r in client.search_runs([exp.experiment_id], "tags.kind = 'workflow'"))
+    assert statuses == ["FINISHED", "KILLED"]
