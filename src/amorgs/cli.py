@@ -178,7 +178,8 @@ def cmd_predict_dejong_cvae(args: argparse.Namespace) -> None:
 
 
 def _save_figure(name: str, output: str, draw) -> None:
-    """Draw a figure with ``draw()`` inside its job run, save it as PNG atomically and log it."""
+    """Draw a figure with ``draw()`` inside its job run (a failure is a FAILED run), save it as PNG
+    atomically and log it as an artifact."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -197,18 +198,21 @@ def _save_figure(name: str, output: str, draw) -> None:
 
 
 def cmd_fig02_foxholes(args: argparse.Namespace) -> None:
-    from amorgs.figures.dejong import fig02_foxholes
+    def draw():
+        from amorgs.figures.dejong import fig02_foxholes
 
-    _save_figure("fig02_foxholes", args.output, fig02_foxholes)
+        return fig02_foxholes()
+
+    _save_figure("fig02_foxholes", args.output, draw)
 
 
 def cmd_fig16_dejong_predictions(args: argparse.Namespace) -> None:
-    import pandas as pd
-
-    from amorgs.figures.dejong import fig16_dejong_predictions
-    from amorgs.problems import get_problem
-
     def draw():
+        import pandas as pd
+
+        from amorgs.figures.dejong import fig16_dejong_predictions
+        from amorgs.problems import get_problem
+
         names = list(get_problem("dejong").variable_names)
         samples = pd.read_parquet(args.samples)
         by_alpha = {float(a): g[names].to_numpy() for a, g in samples.groupby("alpha", sort=True)}

@@ -207,3 +207,16 @@ def test_killed_run_resumes_without_losing_or_duplicating_rows(tmp_path):
     exp = client.get_experiment_by_name(cfg["mlflow"]["experiment"])
     statuses = sorted(r.info.status for r in client.search_runs([exp.experiment_id], "tags.kind = 'workflow'"))
     assert statuses == ["FINISHED", "KILLED"]
+
+
+def test_boundary_conditions_check(tmp_path):
+    """`amorgs boundary-conditions --check` accepts the stored resource and names a changed value."""
+    amorgs = [sys.executable, "-m", "amorgs", "boundary-conditions", "--check", "--output"]
+    stored = ROOT / "resources" / "boundary_conditions.json"
+    res = subprocess.run([*amorgs, str(stored)], capture_output=True, text=True, env=ENV)
+    assert res.returncode == 0, res.stderr
+    bad = json.loads(stored.read_text())
+    bad["mu"] *= 1.001
+    (tmp_path / "bc.json").write_text(json.dumps(bad))
+    res = subprocess.run([*amorgs, str(tmp_path / "bc.json")], capture_output=True, text=True, env=ENV)
+    assert res.returncode != 0 and "mu:" in res.stderr
