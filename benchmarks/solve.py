@@ -32,7 +32,8 @@ from amorgs.solvers.multistart import run_multistart
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "performance.md"
 VARIANTS = {
-    "default (single shooting, L-BFGS 30, RK8 24/seg + 320/coast)": {},
+    "default (single shooting, L-BFGS 30, RK8 24/seg (×√(0.3/α) below 0.3) + 320/coast)": {},
+    "no α step scaling (24/seg at every α)": {"transcription": {"step_scaling_alpha": 0.0}},
     "fewer steps (RK8 12/seg + 240/coast)": {"transcription": {"steps_per_segment": 12, "steps_per_coast": 240}},
     "looser tolerances (tol 1e-5, acceptable 1e-3 × 5)": {"tol": 1e-5, "acceptable_tol": 1e-3, "acceptable_iter": 5},
     "L-BFGS history 10": {"lbfgs_memory": 10},

@@ -41,7 +41,8 @@ def test_layout():
 def test_encode_decode_round_trip(problem, solver):
     x = problem.sample_uniform(0.5, 3, np.random.default_rng(3))
     for xi in x:
-        back = solver.transcription.to_stored(solver.transcription.to_internal(xi, 0.5))
+        tr = solver.transcription(0.5)
+        back = tr.to_stored(tr.to_internal(xi, 0.5))
         np.testing.assert_allclose(back, xi, rtol=1e-12, atol=1e-12)
 
 
@@ -57,7 +58,7 @@ def test_converged_solution_is_verified_and_physical(problem, solution):
 
 def test_rk8_transcription_agrees_with_dop853(problem, solver, solution):
     ref = match_defect(solution.x, 1.0, problem.initial_state, problem.terminal_state)
-    ours = solver.transcription.match_defect(solution.x, 1.0)
+    ours = solver.transcription(1.0).match_defect(solution.x, 1.0)
     assert np.max(np.abs(ours - ref)) <= 1e-6
 
 
@@ -96,3 +97,13 @@ def test_bad_input_is_a_clear_value_error(problem, solver, alpha, mutate, field)
         x0 = mutate(x0)
     with pytest.raises(ValueError, match=field):
         solver.solve(x0, alpha)
+
+
+def test_segment_steps_follow_thrust_level():
+    from amorgs.problems.cr3bp.transcription import ForwardBackwardTranscription, TranscriptionOptions
+
+    opts = TranscriptionOptions()
+    assert opts.for_alpha(1.0).steps_per_segment == opts.steps_per_segment
+    assert opts.for_alpha(0.1).steps_per_segment == 42
+    with pytest.raises(ValueError, match="for_alpha"):
+        ForwardBackwardTranscription(np.zeros(7), np.zeros(6), opts)

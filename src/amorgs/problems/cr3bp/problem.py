@@ -127,7 +127,7 @@ def cache_dir() -> Path:
     return Path(os.environ.get("AMORGS_CACHE_DIR", Path.home() / ".cache" / "amorgs"))
 
 
-def compiled_nlp_library(transcription: ForwardBackwardTranscription, options: SolverOptions, problem) -> Path:
+def compiled_nlp_library(transcription: ForwardBackwardTranscription, hessian: str, problem) -> Path:
     """Shared library with the NLP functions IPOPT needs, generated and compiled once per machine.
 
     The key covers everything compiled into the code: transcription options, Hessian mode, boundary
@@ -136,8 +136,8 @@ def compiled_nlp_library(transcription: ForwardBackwardTranscription, options: S
     """
     key = json.dumps(
         {
-            "transcription": asdict(options.transcription),
-            "hessian": options.hessian,
+            "transcription": asdict(transcription.options),
+            "hessian": hessian,
             "initial": problem.initial_state.tolist(),
             "terminal": problem.terminal_state.tolist(),
             "casadi": ca.__version__,
@@ -150,7 +150,7 @@ def compiled_nlp_library(transcription: ForwardBackwardTranscription, options: S
     if target.is_file():
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
-    opts = {"ipopt": {"hessian_approximation": options.hessian}}
+    opts = {"ipopt": {"hessian_approximation": hessian}}
     plain = ca.nlpsol("cr3bp", "ipopt", transcription.nlp, opts)
     with tempfile.TemporaryDirectory(prefix="amorgs-codegen-", dir=target.parent) as tmp:
         cwd = os.getcwd()
@@ -170,18 +170,19 @@ def compiled_nlp_library(transcription: ForwardBackwardTranscription, options: S
 
 
 class IpoptSolver:
-    """IPOPT on the forward–backward transcription; build inside the process that uses it."""
+    """IPOPT on the forward–backward transcription; build inside the process that uses it.
+
+    The NLP for a given integration grid is built (or loaded from the compile cache) on first use; α is a
+    parameter of the NLP, so one build serves every α with the same resolved step count.
+    """
 
     def __init__(self, problem: LowThrustTransfer, options: SolverOptions):
         self.problem = problem
         self.options = options
         self.options_hash = options.digest()
-        t0 = time.perf_counter()
-        self.transcription = ForwardBackwardTranscription(
-            problem.initial_state, problem.terminal_state, options.transcription
-        )
-        self.lbw, self.ubw = self.transcription.bounds()
-        ipopt = {
+        self.build_s = 0.0
+        self._built: dict[TranscriptionOptions, tuple] = {}
+        self._ipopt = {
             "max_iter": options.max_iter,
             "max_wall_time": options.max_wall_s,
             "tol": options.tol,
@@ -196,35 +197,49 @@ class IpoptSolver:
             "print_level": 0,
             "sb": "yes",
         }
-        opts = {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
-        if options.compile == "cache":
-            library = compiled_nlp_library(self.transcription, options, problem)
-            self.nlpsol = ca.nlpsol("cr3bp", "ipopt", str(library), opts)
-        elif options.compile == "jit":
-            # CasADi writes the JIT source into the working directory: build inside a private temp dir.
-            self._jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
-            opts.update(jit=True, jit_cleanup=False, compiler="shell",
-                        jit_options={"flags": ["-O2"], "verbose": False, "directory": self._jit_dir.name})
-            cwd = os.getcwd()
-            try:
-                os.chdir(self._jit_dir.name)
-                self.nlpsol = ca.nlpsol("cr3bp", "ipopt", self.transcription.nlp, opts)
-            finally:
-                os.chdir(cwd)
-        else:
-            self.nlpsol = ca.nlpsol("cr3bp", "ipopt", self.transcription.nlp, opts)
-        self.build_s = time.perf_counter() - t0
+
+    def transcription(self, alpha: float) -> ForwardBackwardTranscription:
+        """The transcription (integration grid resolved for α) that solves at this α."""
+        return self._nlp(alpha)[0]
+
+    def _nlp(self, alpha: float) -> tuple:
+        tr_opts = self.options.transcription.for_alpha(alpha)
+        if tr_opts not in self._built:
+            t0 = time.perf_counter()
+            tr = ForwardBackwardTranscription(self.problem.initial_state, self.problem.terminal_state, tr_opts)
+            opts = {"ipopt": self._ipopt, "print_time": False, "error_on_fail": False}
+            mode = self.options.compile
+            if mode == "cache":
+                library = compiled_nlp_library(tr, self.options.hessian, self.problem)
+                nlpsol = ca.nlpsol("cr3bp", "ipopt", str(library), opts)
+            elif mode == "jit":
+                # CasADi writes the JIT source into the working directory: build inside a private temp dir.
+                self._jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
+                opts.update(jit=True, jit_cleanup=False, compiler="shell",
+                            jit_options={"flags": ["-O2"], "verbose": False, "directory": self._jit_dir.name})
+                cwd = os.getcwd()
+                try:
+                    os.chdir(self._jit_dir.name)
+                    nlpsol = ca.nlpsol("cr3bp", "ipopt", tr.nlp, opts)
+                finally:
+                    os.chdir(cwd)
+            else:
+                nlpsol = ca.nlpsol("cr3bp", "ipopt", tr.nlp, opts)
+            self._built[tr_opts] = (tr, nlpsol, *tr.bounds())
+            self.build_s += time.perf_counter() - t0
+        return self._built[tr_opts]
 
     def solve(self, x0: np.ndarray, alpha: float) -> SolveRecord:
         """Solve from a stored-layout guess; never raises for numerical failures."""
         p = self.problem
         alpha = check_alpha(alpha, p.alpha_range, p.name)
         x0 = p.check_guess(x0)
-        w0 = self.transcription.to_internal(x0, alpha)
+        tr, nlpsol, lbw, ubw = self._nlp(alpha)
+        w0 = tr.to_internal(x0, alpha)
         wall0, cpu0 = time.perf_counter(), time.process_time()
         try:
-            sol = self.nlpsol(x0=w0, p=alpha, lbx=self.lbw, ubx=self.ubw, lbg=0.0, ubg=0.0)
-            stats = self.nlpsol.stats()
+            sol = nlpsol(x0=w0, p=alpha, lbx=lbw, ubx=ubw, lbg=0.0, ubg=0.0)
+            stats = nlpsol.stats()
         except RuntimeError as exc:  # evaluation errors at the start point etc.
             return SolveRecord(
                 status="exception", converged=False, solver_success=False, x=np.full(x0.size, np.nan),
@@ -234,7 +249,7 @@ class IpoptSolver:
         status = str(stats.get("return_status", "unknown"))
         w = np.asarray(sol["x"]).ravel()
         defect = float(np.max(np.abs(np.asarray(sol["g"]).ravel()))) if np.all(np.isfinite(w)) else math.inf
-        x = self.transcription.to_stored(w)
+        x = tr.to_stored(w)
         solver_success = status in IPOPT_SUCCESS and defect <= self.options.feasibility_tol
         verify = independent_defect(x, alpha, p.initial_state, p.terminal_state) if solver_success else math.nan
         converged = bool(solver_success and verify <= self.options.verify_tol)

@@ -22,7 +22,7 @@ tableau), time-scaled so that the step length follows the piece length: coasts a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -46,7 +46,10 @@ def variable_names(n_segments: int = N_SEGMENTS) -> tuple[str, ...]:
 class TranscriptionOptions:
     """Integration and layout choices; they do not change the stored 64-vector.
 
-    steps_per_segment: RK8 steps per thrust segment (length τ_s/N).
+    steps_per_segment: RK8 steps per thrust segment (length τ_s/N) at α ≥ ``step_scaling_alpha``; below it
+        the count grows as ``ceil(steps_per_segment · sqrt(step_scaling_alpha / α))`` because low thrust means
+        long thrust arcs (τ_s up to 40 TU, segments of 2 TU ≈ one revolution near the spiral end).  Use
+        :meth:`for_alpha` to resolve it; 0 disables the scaling.
     steps_per_coast: RK8 steps per coast arc (τ_i or τ_f), split evenly over ``coast_pieces``.
     coast_pieces: sub-arcs per coast (each a shooting node when ``multiple_shooting``).
     multiple_shooting: node states at every piece boundary (exact Hessian becomes sparse and cheap).
@@ -56,6 +59,14 @@ class TranscriptionOptions:
     steps_per_coast: int = 320
     coast_pieces: int = 8
     multiple_shooting: bool = False
+    step_scaling_alpha: float = 0.3
+
+    def for_alpha(self, alpha: float) -> "TranscriptionOptions":
+        """The options with ``steps_per_segment`` resolved for this α (and the scaling switched off)."""
+        steps = self.steps_per_segment
+        if self.step_scaling_alpha > 0 and alpha < self.step_scaling_alpha:
+            steps = math.ceil(self.steps_per_segment * math.sqrt(self.step_scaling_alpha / alpha) - 1e-9)
+        return replace(self, steps_per_segment=steps, step_scaling_alpha=0.0)
 
     def __post_init__(self) -> None:
         for key in ("steps_per_segment", "steps_per_coast", "coast_pieces"):
@@ -124,6 +135,8 @@ class ForwardBackwardTranscription:
 
     def __init__(self, initial_state, terminal_state, options: TranscriptionOptions | None = None):
         self.options = options or TranscriptionOptions()
+        if self.options.step_scaling_alpha > 0:
+            raise ValueError("resolve the α-dependent step count first: TranscriptionOptions.for_alpha(alpha)")
         opt = self.options
         self.n = N_SEGMENTS
         self.xi0 = np.asarray(initial_state, float).copy()
