@@ -129,18 +129,23 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
         assert child.info.status == "FINISHED"
         assert tags["config_hash"] == cfg.hash
         assert {"git_commit", "version.torch", "version.casadi", "version.numpy", "version.snakemake", "version.mlflow"} <= set(tags)
-    by_rule = {c.data.tags["rule"]: c for c in children}
-    assert 0 < by_rule["generate"].data.metrics["converged_fraction"] <= 1
-    assert by_rule["filter"].data.metrics["high_quality"] > 0
-    train = by_rule["train_dejong_cvae"]
+    def child(rule, **wildcards):
+        tags = {"rule": rule, **{f"wildcard.{k}": v for k, v in wildcards.items()}}
+        return next(c for c in children if tags.items() <= c.data.tags.items())
+
+    assert 0 < child("generate", problem="dejong", alpha="0.000", shard="0").data.metrics["converged_fraction"] <= 1
+    assert child("generate", problem="cr3bp", alpha="1.000", shard="0").data.metrics["starts"] == 4
+    assert child("filter", problem="dejong").data.metrics["high_quality"] > 0
+    assert "converged_fraction/alpha_0.150" in child("filter", problem="cr3bp").data.metrics
+    train = child("train_dejong_cvae")
     history = client.get_metric_history(train.info.run_id, "loss")
     assert [m.step for m in history] == list(range(1, cfg.dejong_cvae.epochs + 1))
-    predict = by_rule["predict_dejong_cvae"].data.metrics
+    predict = child("predict_dejong_cvae").data.metrics
     for label in ("0.349", "0.698", "1.047", "1.396"):
         assert 0 <= predict[f"fraction_within_radius/alpha_{label}"] <= 1
         assert 0 <= predict[f"minima_covered/alpha_{label}"] <= 8
     for name in ("fig02_foxholes", "fig16_dejong_predictions"):
-        artifacts = [a.path for a in client.list_artifacts(by_rule[name].info.run_id, "figures")]
+        artifacts = [a.path for a in client.list_artifacts(child(name).info.run_id, "figures")]
         assert artifacts == [f"figures/{name}.png"]
 
     res = snakemake(wd, "--report", "report.html", "--configfile", "config/smoke.yaml")
