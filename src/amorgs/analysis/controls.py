@@ -20,6 +20,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from amorgs.problems.cr3bp.controls import thrust_vectors
+
 COMPONENTS = ("u_x", "u_y", "u_z")
 INTERVALS = ("mean_ci", "percentile")
 
@@ -32,10 +34,8 @@ def n_segments(df: pd.DataFrame) -> int:
 def thrust_components(df: pd.DataFrame) -> np.ndarray:
     """u = ρ (cos φ cos θ, cos φ sin θ, sin φ) for every row and segment, shape (n, N, 3)."""
     segs = [f"{k:02d}" for k in range(1, n_segments(df) + 1)]
-    th = df[[f"theta_{s}" for s in segs]].to_numpy(dtype=float)
-    ph = df[[f"phi_{s}" for s in segs]].to_numpy(dtype=float)
-    rho = df[[f"rho_{s}" for s in segs]].to_numpy(dtype=float)
-    return rho[..., None] * np.stack([np.cos(ph) * np.cos(th), np.cos(ph) * np.sin(th), np.sin(ph)], axis=-1)
+    th, ph, rho = (df[[f"{v}_{s}" for s in segs]].to_numpy(dtype=float) for v in ("theta", "phi", "rho"))
+    return thrust_vectors(th, ph, rho)
 
 
 def segment_statistics(u: np.ndarray, interval: str = "mean_ci", level: float = 0.95) -> pd.DataFrame:

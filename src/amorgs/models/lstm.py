@@ -7,12 +7,11 @@ per-step decoder MLP [512, 512, 512, 3] outputs the Cartesian throttle vector u_
 
 Normalisation: the conditioning is mapped to [0, 1] with a :class:`~amorgs.models.cvae.Normalizer` fitted on
 the training data and stored in the model's buffers; the outputs need none (already in [−1, 1]).
-:func:`cartesian_controls` / :func:`spherical_controls` convert between the stored (θ, φ, ρ) layout and u.
+``amorgs.problems.cr3bp.controls`` (re-exported here) converts between the stored (θ, φ, ρ) layout and u.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -21,8 +20,10 @@ import torch
 from torch import Tensor, nn
 
 from amorgs.models.cvae import Normalizer, mlp
+from amorgs.problems.cr3bp.controls import cartesian_controls, spherical_controls
 
 CHECKPOINT_FORMAT = "amorgs-lstm-1"
+__all__ = ["ControlLSTM", "LSTMConfig", "cartesian_controls", "load", "save", "spherical_controls"]
 
 
 @dataclass(frozen=True)
@@ -45,22 +46,6 @@ class LSTMConfig:
     def small(cls) -> "LSTMConfig":
         """A CPU-friendly preset for smoke runs and tests."""
         return cls(encoder=(5, 64, 64), hidden=32, decoder=(64, 64, 3))
-
-
-def cartesian_controls(x: np.ndarray, n_steps: int = 20) -> np.ndarray:
-    """Stored vectors (n, 4 + 3N) → Cartesian controls (n, N, 3): u = ρ (cosφ cosθ, cosφ sinθ, sinφ)."""
-    u = np.asarray(x, float)[:, 4 : 4 + 3 * n_steps].reshape(-1, n_steps, 3)
-    th, ph, rho = u[..., 0], u[..., 1], u[..., 2]
-    return np.stack([rho * np.cos(ph) * np.cos(th), rho * np.cos(ph) * np.sin(th), rho * np.sin(ph)], axis=-1)
-
-
-def spherical_controls(u: np.ndarray) -> np.ndarray:
-    """Cartesian controls (n, N, 3) → stored (θ, φ, ρ) triples flattened to (n, 3N); ρ clipped to 1."""
-    u = np.asarray(u, float)
-    rho = np.linalg.norm(u, axis=-1)
-    theta = np.mod(np.arctan2(u[..., 1], u[..., 0]), 2 * math.pi)
-    phi = np.arcsin(np.clip(u[..., 2] / np.where(rho > 0, rho, 1.0), -1.0, 1.0))
-    return np.stack([theta, phi, np.minimum(rho, 1.0)], axis=-1).reshape(len(u), -1)
 
 
 class ControlLSTM(nn.Module):
