@@ -115,56 +115,65 @@ def _warn(what: str, exc: BaseException) -> None:
 
 def start_invocation(
     config: dict, config_hash: str, experiment: str, sources: list[str], store_dir: str | Path = STORE_DIR
-) -> str:
+) -> str | None:
     """Create the store and experiment if needed, open this invocation's parent run, write ``invocation.json``.
 
     A parent run left RUNNING by a killed earlier invocation is closed as KILLED first.  ``config`` is the
     validated mapping (logged as flattened params and as ``config.yaml``); ``sources`` are the config files.
-    Returns the parent run id.
+    Returns the parent run id, or ``None`` (with a warning, jobs then run untracked) if MLflow fails.
     """
     store = Path(store_dir)
+    path = store / INVOCATION_FILE
+    previous = read_json(path)["parent_run_id"] if path.exists() else None
+    stop_tracking(store)  # until the new parent run exists, jobs would log nowhere
+    try:
+        with _locked(store):
+            run_id = _open_parent_run(store, config, config_hash, experiment, sources, previous)
+    except Exception as exc:  # noqa: BLE001 — tracking never fails the workflow
+        _warn("opening the workflow run", exc)
+        return None
+    return run_id
+
+
+def _open_parent_run(
+    store: Path, config: dict, config_hash: str, experiment: str, sources: list[str], previous: str | None
+) -> str:
     client = MlflowClient(tracking_uri(store))
-    with _locked(store):
-        previous = store / INVOCATION_FILE
-        if previous.exists():
-            old = read_json(previous)
-            try:
-                if client.get_run(old["parent_run_id"]).info.status == "RUNNING":
-                    client.set_terminated(old["parent_run_id"], "KILLED")
-            except Exception:  # noqa: BLE001 — a stale file from a lost store: nothing to close
-                pass
-        exp = client.get_experiment_by_name(experiment)
-        exp_id = (
-            exp.experiment_id
-            if exp is not None
-            else client.create_experiment(experiment, artifact_location=(store / "artifacts").resolve().as_uri())
-        )
-        now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
-        tags = {
-            "kind": "workflow",
-            "config_hash": config_hash,
-            "config_files": " ".join(sources),
-            "host": socket.gethostname(),
-            **git_state(),
-            **package_versions(),
-        }
-        run = client.create_run(exp_id, run_name=f"workflow {now} config {config_hash}", tags=tags)
-        run_id = run.info.run_id
-        params = [Param(k, v[:6000]) for k, v in _flatten(config).items()]
-        for i in range(0, len(params), 100):
-            client.log_batch(run_id, params=params[i : i + 100])
-        client.log_dict(run_id, config, "config.yaml")
-        write_json(
-            {
-                "tracking_uri": tracking_uri(store),
-                "experiment_id": exp_id,
-                "parent_run_id": run_id,
-                "config_hash": config_hash,
-                "git_commit": tags["git_commit"],
-                "git_dirty": tags["git_dirty"],
-            },
-            store / INVOCATION_FILE,
-        )
+    if previous is not None:
+        try:
+            if client.get_run(previous).info.status == "RUNNING":
+                client.set_terminated(previous, "KILLED")
+        except Exception:  # noqa: BLE001 — a stale record from a lost store: nothing to close
+            pass
+    exp = client.get_experiment_by_name(experiment)
+    exp_id = (
+        exp.experiment_id
+        if exp is not None
+        else client.create_experiment(experiment, artifact_location=(store / "artifacts").resolve().as_uri())
+    )
+    now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    tags = {
+        "kind": "workflow",
+        "config_hash": config_hash,
+        "config_files": " ".join(sources),
+        "host": socket.gethostname(),
+        **git_state(),
+        **package_versions(),
+    }
+    run_id = client.create_run(exp_id, run_name=f"workflow {now} config {config_hash}", tags=tags).info.run_id
+    params = [Param(k, v[:6000]) for k, v in _flatten(config).items()]
+    for i in range(0, len(params), 100):
+        client.log_batch(run_id, params=params[i : i + 100])
+    client.log_dict(run_id, config, "config.yaml")
+    invocation = {
+        "tracking_uri": tracking_uri(store),
+        "experiment_id": exp_id,
+        "parent_run_id": run_id,
+        "config_hash": config_hash,
+        "git_commit": tags["git_commit"],
+        "git_dirty": tags["git_dirty"],
+    }
+    write_json(invocation, store / INVOCATION_FILE)
     return run_id
 
 
