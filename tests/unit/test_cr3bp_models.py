@@ -1,0 +1,126 @@
+"""Training entry points of the LT-CR3BP models: presets, layouts, loss decrease, any data size, α interpolation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+from cr3bp_synthetic import synthetic_hq
+
+from amorgs.data.filter import high_quality
+from amorgs.models.cr3bp_models import (
+    PRESETS,
+    TRAINERS,
+    lstm_config,
+    stored_from_vanilla,
+    stored_vectors,
+    subsample,
+    time_mass_cvae_config,
+    train_time_mass_cvae,
+    vanilla_cvae_config,
+    vanilla_vectors,
+)
+from amorgs.models.cvae import GMMPriorCVAE, VanillaCVAE
+from amorgs.models.lstm import ControlLSTM, LSTMConfig
+from amorgs.models.training import TrainConfig
+
+FIXTURE = Path(__file__).resolve().parents[1] / "data" / "cr3bp_solutions_small.parquet"
+TYPES = {"cvae_gmm": GMMPriorCVAE, "vanilla_cvae": VanillaCVAE, "lstm": ControlLSTM}
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_torch_thread():
+    """Tiny networks: one intra-op thread is fastest, and avoids spinning against other jobs on the box."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def cfg(epochs: int, seed: int = 0) -> TrainConfig:
+    return TrainConfig(epochs=epochs, batch_size=1024, lr=5e-3, seed=seed, device="cpu")
+
+
+# ------------------------------------------------------------------------------------------- presets
+def test_presets():
+    paper = time_mass_cvae_config("paper").layer_table()
+    assert paper["Embed_x"] == [4, 1024, 1024, 1024, 1024] and paper["GMM_mu"] == [1, 512, 512, 512, 80]  # Table 4
+    assert vanilla_cvae_config("paper").layer_table()["Decode_x"] == [1280, 512, 512, 512, 64]  # Table 5
+    assert lstm_config("paper") == LSTMConfig.paper() and lstm_config("small") == LSTMConfig.small()
+    for preset in PRESETS:
+        c = time_mass_cvae_config(preset)
+        assert (c.x_dim, c.latent_dim, c.n_components) == (4, 4, 20)
+        v = vanilla_cvae_config(preset)
+        assert (v.x_dim, v.latent_dim) == (64, 64)
+    with pytest.raises(ValueError, match="preset"):
+        time_mass_cvae_config("large")
+
+
+def test_vanilla_layout_round_trip():
+    x = stored_vectors(synthetic_hq(20))
+    v = vanilla_vectors(x)
+    assert v.shape == (20, 64)
+    np.testing.assert_array_equal(v[:, :4], x[:, :4])
+    np.testing.assert_allclose(np.linalg.norm(v[:, 4:].reshape(20, 20, 3), axis=-1), x[:, 6::3])  # ‖u_k‖ = ρ_k
+    np.testing.assert_allclose(stored_from_vanilla(v), x, atol=1e-9)
+
+
+def test_subsample_keeps_a_fraction_of_every_alpha():
+    hq = synthetic_hq(400)
+    sub = subsample(hq, 0.1, seed=1)
+    counts, sub_counts = hq.groupby("alpha").size(), sub.groupby("alpha").size()
+    assert (sub_counts == (0.1 * counts).round().astype(int)).all()
+    assert sub.merge(hq).shape[0] == len(sub)  # rows of the table, unchanged
+    pd.testing.assert_frame_equal(subsample(hq, 0.1, seed=1), sub)
+    assert len(subsample(hq.iloc[:3], 0.01, seed=0)) == hq.iloc[:3]["alpha"].nunique()
+    pd.testing.assert_frame_equal(subsample(hq, 1.0, seed=0), hq)
+    with pytest.raises(ValueError, match="fraction"):
+        subsample(hq, 0.0, seed=0)
+
+
+# ------------------------------------------------------------------------------------------- training
+@pytest.mark.parametrize("name", sorted(TRAINERS))
+def test_training_decreases_the_loss(name):
+    losses: list[float] = []
+    model = TRAINERS[name](synthetic_hq(80), "small", cfg(40), lambda epoch, m: losses.append(m["loss"]))
+    assert isinstance(model, TYPES[name]) and not model.training
+    assert len(losses) == 40 and losses[-1] < 0.5 * losses[0]
+
+
+@pytest.mark.skipif(not FIXTURE.is_file(), reason="fixture of real solves not present")
+@pytest.mark.parametrize("name", sorted(TRAINERS))
+def test_training_on_real_solutions(name):
+    hq = high_quality(pd.read_parquet(FIXTURE), min_final_mass_kg=415.0)
+    losses: list[float] = []
+    TRAINERS[name](hq, "small", cfg(30), lambda epoch, m: losses.append(m["loss"]))
+    assert np.all(np.isfinite(losses)) and losses[-1] < 0.5 * losses[0]
+
+
+@pytest.mark.parametrize("n", [30, 3000])
+def test_any_table_size(n):
+    hq = synthetic_hq(n)
+    for name, trainer in TRAINERS.items():
+        assert isinstance(trainer(hq, "small", cfg(1)), TYPES[name])
+
+
+def test_seed_fixes_the_model():
+    hq = synthetic_hq(40)
+    a, b = (train_time_mass_cvae(hq, "small", cfg(3, seed=4)).state_dict() for _ in range(2))
+    c = train_time_mass_cvae(hq, "small", cfg(3, seed=5)).state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert not all(torch.equal(a[k], c[k]) for k in a)
+
+
+def test_cvae_interpolates_an_alpha_dependence():
+    """τ_s = 6 + 20 α and m_f = 415 + 20 α at α ∈ {0.1, 0.4, 0.7, 1.0}: at the unseen α = 0.55 the samples
+    sit near 17 TU and 426 kg (training spans 8–26 TU and 417–435 kg)."""
+    model = train_time_mass_cvae(synthetic_hq(200), "small", cfg(100))
+    gen = torch.Generator().manual_seed(0)
+    for alpha, tol_tau, tol_mass in [(0.1, 1.0, 1.5), (0.55, 2.0, 3.0), (1.0, 1.0, 1.5)]:
+        s = model.sample(alpha, 2000, generator=gen).numpy()
+        assert abs(s[:, 0].mean() - (6 + 20 * alpha)) < tol_tau
+        assert abs(s[:, 3].mean() - (415 + 20 * alpha)) < tol_mass
+        assert np.all(s[:, 1] + s[:, 2] <= 10.5)  # coasts stay within the training coast totals
