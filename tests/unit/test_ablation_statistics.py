@@ -70,3 +70,19 @@ def test_hyperplane_coverage_equal_cpu(ablation):
     assert cov.loc["uniform", "hyperplanes_reached"] == 1
     assert cov.loc["uniform", "hq_solutions"] == 1
     assert (cov["cpu_budget_s"] == 16.0).all()
+
+
+def test_summarize_report(ablation):
+    from amorgs.ablation.report import summarize, table6_markdown
+
+    rng = np.random.default_rng(0)
+    truth = pd.DataFrame({"alpha": 0.15, "tau_s": rng.normal(18, 0.05, 30), "tau_i": np.ones(30), "tau_f": np.ones(30),
+                          "m_f": np.full(30, 430.0), "converged": True})
+    ablation = ablation.assign(guess_tau_s=5.0, guess_tau_i=1.0, guess_tau_f=1.0, guess_m_f=400.0)
+    metrics, tables, figures = summarize(ablation, truth, 415.0, n_boot=100)
+    assert metrics["percent_hq_a0.150_amorgs"] == 75.0
+    assert metrics["hyperplanes_ground_truth_a0.150"] == 1.0
+    assert metrics["hyperplanes_reached_a0.150_amorgs"] == 1.0
+    assert set(figures) == {"fig21_solve_time_histograms", "fig22_capped_convergence", "fig23_amorgs_diversity"}
+    md = table6_markdown(tables["table6"])
+    assert "| | Uniform | AmorGS |" in md and "| Percentage (%) | 25.0 | 75.0 |" in md
