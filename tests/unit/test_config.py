@@ -15,7 +15,7 @@ from amorgs import layout
 
 ROOT = Path(__file__).resolve().parents[2]
 SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
-CONFIGS = ["smoke", "default", "paper"]
+CONFIGS = sorted(p.stem for p in (ROOT / "config").glob("*.yaml"))
 
 
 def load(name: str) -> C.Config:
@@ -26,6 +26,10 @@ def write(tmp_path: Path, mapping: dict) -> Path:
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(mapping))
     return path
+
+
+def test_the_three_main_configs_ship():
+    assert {"smoke", "default", "paper"} <= set(CONFIGS)
 
 
 @pytest.mark.parametrize("name", CONFIGS)
