@@ -12,8 +12,8 @@ configfile: "config/default.yaml"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/generate.smk"
 include: "workflow/rules/filter.smk"
-include: "workflow/rules/dejong_cvae.smk"
-include: "workflow/rules/figures.smk"
+include: "workflow/rules/train.smk"
+include: "workflow/rules/report.smk"
 
 
 # Short bookkeeping jobs run on the submit host under the SLURM executor.

@@ -1,5 +1,5 @@
-# Stage 3 (De Jong): train the GMM-prior CVAE on the filtered minima at the training α, then sample it at the
-# held-out test α and score the samples against the analytic minima.
+# Stage 3, models: train the GMM-prior CVAE on the filtered De Jong minima at the training α, then sample it
+# at the held-out test α and score the samples against the analytic minima.
 
 
 rule train_dejong_cvae:
