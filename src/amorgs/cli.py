@@ -22,7 +22,6 @@ import math
 import os
 import sys
 import time
-from pathlib import Path
 
 from amorgs.config import SCHEMA_PATH, ConfigError, alpha_label
 

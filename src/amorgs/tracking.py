@@ -3,7 +3,7 @@
 Files under ``results/`` are the source of truth; MLflow mirrors parameters, metrics and figures so runs
 can be browsed and compared.  Layout of the store (``results/mlflow/``)::
 
-    mlflow.db          SQLite tracking store, URI ``sqlite:///<absolute path>/mlflow.db``
+    mlflow.db          SQLite tracking store, URI ``sqlite:///<absolute path>/mlflow.db?timeout=60``
     artifacts/         artifact root of the experiment (figures, configs)
     invocation.json    the current workflow invocation: experiment, parent run id, config hash, git commit
     .lock              serialises every write (see below)
@@ -13,8 +13,8 @@ One *parent* run per workflow invocation (:func:`start_invocation` in Snakemake'
 with the rule, its wildcards, the config hash, the git commit and the package versions.
 
 Concurrency: SQLite returns "database is locked" without waiting when a read transaction must be promoted to
-a write while another process writes, which MLflow's own busy timeout cannot prevent.  Every interaction
-with the store therefore holds an exclusive ``flock`` on ``.lock``: writes are milliseconds, jobs minutes.
+a write while another process writes, which MLflow's own busy timeout cannot prevent.  Every write to the
+store therefore holds an exclusive ``flock`` on ``.lock``: writes take milliseconds, jobs minutes.
 
 Failure policy: a job never fails because of tracking.  A missing store or an MLflow error prints one
 warning to the job's log and the job goes on untracked.
@@ -37,7 +37,7 @@ from pathlib import Path
 
 os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
 
-from mlflow.entities import Metric, Param, RunTag  # noqa: E402
+from mlflow.entities import Metric, Param  # noqa: E402
 from mlflow.tracking import MlflowClient  # noqa: E402
 
 from amorgs.data.io import read_json, write_json  # noqa: E402
