@@ -31,14 +31,6 @@ FIXTURE = Path(__file__).resolve().parents[1] / "data" / "cr3bp_solutions_small.
 TYPES = {"cvae_gmm": GMMPriorCVAE, "vanilla_cvae": VanillaCVAE, "lstm": ControlLSTM}
 
 
-@pytest.fixture(autouse=True, scope="module")
-def one_torch_thread():
-    """Tiny networks: one intra-op thread is fastest, and avoids spinning against other jobs on the box."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
-
 
 def cfg(epochs: int, seed: int = 0) -> TrainConfig:
     return TrainConfig(epochs=epochs, batch_size=1024, lr=5e-3, seed=seed, device="cpu")

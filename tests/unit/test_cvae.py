@@ -41,14 +41,6 @@ def vanilla_model(x: np.ndarray, seed: int = 0) -> VanillaCVAE:
 
 MODELS = {"gmm": gmm_model, "vanilla": vanilla_model}
 
-
-@pytest.fixture(autouse=True, scope="module")
-def one_torch_thread():
-    """Tiny networks: one intra-op thread is fastest, and avoids spinning against other jobs on the box."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
 FAST = TrainConfig(epochs=40, batch_size=32, lr=3e-3, seed=0, device="cpu")
 
 

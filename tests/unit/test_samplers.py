@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-import torch
 from cr3bp_synthetic import synthetic_hq
 
 from amorgs.models import cvae, lstm
@@ -28,14 +27,6 @@ from amorgs.problems import get_problem
 BRIEF = TrainConfig(epochs=5, batch_size=1024, lr=5e-3, seed=0, device="cpu")
 LEARNED = tuple(n for n in SAMPLER_NAMES if n != "uniform")
 
-
-@pytest.fixture(autouse=True, scope="module")
-def one_torch_thread():
-    """Tiny networks: one intra-op thread is fastest, and avoids spinning against other jobs on the box."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
 
 
 @pytest.fixture(scope="module")
