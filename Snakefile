@@ -1,4 +1,5 @@
-# amorgs workflow: generate → merge → filter per problem, then the De Jong CVAE and the paper figures.
+# amorgs workflow: generate → merge → filter per problem; the De Jong CVAE; the CR3BP structure analysis, models,
+# predictions and warm-start ablation; the paper figures.
 # Thin by design: the rules live in workflow/rules/, the work in the amorgs package (`python -m amorgs ...`).
 # Run:  snakemake --cores 2 [--configfile config/smoke.yaml]      (profile: workflow/profiles/default)
 from snakemake.utils import min_version
@@ -12,7 +13,9 @@ configfile: "config/default.yaml"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/generate.smk"
 include: "workflow/rules/filter.smk"
+include: "workflow/rules/analyze.smk"
 include: "workflow/rules/train.smk"
+include: "workflow/rules/ablation.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -23,6 +26,7 @@ localrules:
     filter,
     fig02_foxholes,
     fig16_dejong_predictions,
+    ablation_report,
 
 
 onstart:

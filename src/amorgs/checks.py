@@ -1,6 +1,7 @@
 """``amorgs check-outputs``: does the results tree hold everything a config promises?
 
-Every output must exist and be non-empty; solution tables must pass the table schema and hold rows;
+Every output must exist and be non-empty; solution tables (merged α tables, ablation cells) must pass the
+table schema and hold rows;
 figures must be PNG files; JSON must parse; and, with MLflow enabled, every job of the config must have a
 FINISHED run in the store (from this or an earlier invocation), every figure must be logged as an
 artifact, and the latest workflow run must have FINISHED.
@@ -14,10 +15,12 @@ from pathlib import Path
 import pandas as pd
 
 from amorgs import layout
-from amorgs.config import Config
+from amorgs.config import Config, alpha_label
 from amorgs.data.tables import validate_solutions
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: Figures drawn by a rule of their own (the others come out of analyze_cr3bp, predict_cr3bp, ablation_report).
+_FIGURE_RULES = ("fig02_foxholes", "fig16_dejong_predictions")
 
 
 def expected_jobs(cfg: Config) -> list[tuple[str, dict[str, str]]]:
@@ -30,7 +33,23 @@ def expected_jobs(cfg: Config) -> list[tuple[str, dict[str, str]]]:
         jobs.append(("filter", {"problem": name}))
     if cfg.dejong_cvae.enabled:
         jobs += [(rule, {"problem": "dejong", "model": "cvae_gmm"}) for rule in ("train_dejong_cvae", "predict_dejong_cvae")]
-    jobs += [(name, {}) for name in layout.figure_names(cfg)]
+    if cfg.cr3bp_analysis.enabled:
+        jobs.append(("analyze_cr3bp", {"problem": "cr3bp"}))
+    if cfg.cr3bp_models.enabled:
+        jobs += [("train_cr3bp", {"problem": "cr3bp", "model": m}) for m in layout.CR3BP_MODELS]
+        jobs += [
+            ("train_cr3bp_fraction", {"problem": "cr3bp", "model": "cvae_gmm", "fraction": layout.fraction_label(f)})
+            for f in cfg.cr3bp_models.data_fractions
+        ]
+        jobs.append(("predict_cr3bp", {"problem": "cr3bp"}))
+    if cfg.ablation.enabled:
+        jobs += [
+            ("ablation_cell", {"alpha": alpha_label(a), "sampler": s})
+            for a in cfg.problems.cr3bp.alphas.test
+            for s in cfg.ablation.samplers
+        ]
+        jobs.append(("ablation_report", {}))
+    jobs += [(name, {}) for name in layout.figure_names(cfg) if name in _FIGURE_RULES]
     return jobs
 
 
@@ -45,7 +64,7 @@ def _check_file(path: str) -> str | None:
             return f"{path}: not a PNG image"
         if p.suffix == ".json":
             json.loads(p.read_text())
-        if p.suffix == ".parquet" and "/solutions/" in path:
+        if p.suffix == ".parquet" and ("/solutions/" in path or "/ablation/" in path):
             df = pd.read_parquet(p)
             validate_solutions(df, where=path)
             if df.empty:

@@ -8,8 +8,14 @@ Workflow steps (each called by one Snakemake rule, each mirrored to MLflow as on
     train-dejong-cvae         GMM-prior CVAE on the filtered De Jong minima       → model checkpoint
     predict-dejong-cvae       samples at the test α + hit metrics                 → samples + metrics
     fig02-foxholes, fig16-dejong-predictions   one paper figure each          → results/figures/*.png
+    analyze-cr3bp             structure analysis, Figs. 3–13                      → metrics, tables, figures
+    train-cr3bp               one CR3BP model on the training α (or a fraction)   → model checkpoint
+    predict-cr3bp             samples at the test α vs the ground truth, Figs. 17–20 → samples + metrics
+    ablation-cell             one (test α, sampler) warm-start cell               → cell table
+    ablation-report           Table 6, capped study, coverage, Figs. 21–23        → tables + summary
 
-Tools: ``boundary-conditions`` (recompute or check ``resources/boundary_conditions.json``), ``ui`` (the
+Tools: ``library-export`` (copy finished CR3BP shards into the versioned library, ``data/library``),
+``boundary-conditions`` (recompute or check ``resources/boundary_conditions.json``), ``ui`` (the
 MLflow UI on ``results/mlflow``), ``check-outputs`` (every output a config promises exists, is non-empty
 and is tracked).  Heavy imports (solvers, torch, mlflow) happen inside the subcommand that needs them.
 """
@@ -73,16 +79,30 @@ def cmd_merge(args: argparse.Namespace) -> None:
 
     from amorgs import tracking
     from amorgs.data.io import write_parquet
-    from amorgs.data.tables import merge_shards
+    from amorgs.data.library import SOURCE_FRESH, SOURCE_LIBRARY, tag_source
+    from amorgs.data.tables import merge_shards, validate_solutions
 
     with tracking.job_run("merge", {"problem": args.problem, "alpha": args.alpha}) as run:
-        df = merge_shards(pd.read_parquet(p) for p in args.inputs)
+        fresh = tag_source(merge_shards(pd.read_parquet(p) for p in args.inputs), SOURCE_FRESH)
+        parts = [fresh]
+        if args.library:
+            parts.insert(0, tag_source(merge_shards(pd.read_parquet(p) for p in args.library), SOURCE_LIBRARY))
+        df = pd.concat(parts, ignore_index=True)
+        validate_solutions(df, where=args.output)
         wrong = df[(df["problem"] != args.problem) | (df["alpha"].map(alpha_label) != args.alpha)]
         if len(wrong):
             raise ValueError(f"{args.output}: {len(wrong)} row(s) are not {args.problem} at alpha={args.alpha}")
         write_parquet(df, args.output)
-        run.log_metrics({"shards": len(args.inputs), "rows": len(df), "converged": int(df["converged"].sum())})
-    print(f"{args.output}: {len(df)} rows from {len(args.inputs)} shard(s)")
+        run.log_metrics(
+            {
+                "shards": len(args.inputs),
+                "library_shards": len(args.library),
+                "rows": len(df),
+                "rows_library": len(df) - len(fresh),
+                "converged": int(df["converged"].sum()),
+            }
+        )
+    print(f"{args.output}: {len(df)} rows from {len(args.inputs)} fresh and {len(args.library)} library shard(s)")
 
 
 def cmd_filter(args: argparse.Namespace) -> None:
@@ -176,23 +196,37 @@ def cmd_predict_dejong_cvae(args: argparse.Namespace) -> None:
     print(f"{args.samples}: {args.n_samples} samples at each of {len(args.test_alphas)} test α")
 
 
+def _write_png(fig, output: str, run) -> None:
+    """Save ``fig`` as PNG atomically, close it and log it as an artifact of ``run`` under ``figures/``."""
+    from matplotlib import pyplot as plt
+
+    from amorgs.data.io import atomic_path
+
+    with atomic_path(output) as tmp:
+        fig.savefig(tmp, format="png", dpi=150, bbox_inches="tight")
+    plt.close(fig)
+    run.log_artifact(output, "figures")
+
+
+def _write_figures(figures: dict, figures_dir: str, expected: tuple[str, ...], run) -> None:
+    """Save every figure of ``figures`` (name → Figure) as ``figures_dir/{name}.png``; the names must be
+    exactly ``expected`` (the outputs the workflow declares)."""
+    if sorted(figures) != sorted(expected):
+        raise ValueError(f"figures {sorted(figures)} differ from the declared outputs {sorted(expected)}")
+    for name, fig in figures.items():
+        _write_png(fig, os.path.join(figures_dir, f"{name}.png"), run)
+
+
 def _save_figure(name: str, output: str, draw) -> None:
     """Draw a figure with ``draw()`` inside its job run (a failure is a FAILED run), save it as PNG
     atomically and log it as an artifact."""
     import matplotlib
 
     matplotlib.use("Agg")
-    from matplotlib import pyplot as plt
-
     from amorgs import tracking
-    from amorgs.data.io import atomic_path
 
     with tracking.job_run(name, {}) as run:
-        fig = draw()
-        with atomic_path(output) as tmp:
-            fig.savefig(tmp, format="png", dpi=150, bbox_inches="tight")
-        plt.close(fig)
-        run.log_artifact(output, "figures")
+        _write_png(draw(), output, run)
     print(f"{output}: written")
 
 
@@ -220,7 +254,211 @@ def cmd_fig16_dejong_predictions(args: argparse.Namespace) -> None:
     _save_figure("fig16_dejong_predictions", args.output, draw)
 
 
+def _read_tables(paths: list[str]):
+    import pandas as pd
+
+    return pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
+
+
+def _finite_metrics(metrics: dict) -> dict[str, float]:
+    """The numeric, finite entries of a flat metrics dict (what MLflow can hold)."""
+    return {k: float(v) for k, v in metrics.items() if isinstance(v, (int, float)) and math.isfinite(float(v))}
+
+
+def cmd_analyze_cr3bp(args: argparse.Namespace) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import pandas as pd
+
+    from amorgs import layout, tracking
+    from amorgs.analysis.structure_report import StructureParams, analyze
+    from amorgs.data.io import write_json, write_parquet
+
+    params_dict = json.loads(args.params)
+    try:
+        params = StructureParams.from_dict(params_dict)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"cr3bp_analysis.params: {exc}") from None
+    with tracking.job_run("analyze_cr3bp", {"problem": "cr3bp"}) as run:
+        run.log_params({"beta_kg": args.beta, "params": params_dict})
+        solutions = _read_tables(args.inputs)
+        metrics, tables, figures = analyze(solutions, pd.read_parquet(args.high_quality), args.beta, params)
+        if sorted(tables) != sorted(layout.ANALYSIS_TABLES):
+            raise ValueError(f"analysis tables {sorted(tables)} differ from the declared outputs {sorted(layout.ANALYSIS_TABLES)}")
+        for name, table in tables.items():
+            write_parquet(table, os.path.join(args.tables_dir, f"{name}.parquet"))
+        write_json(metrics, args.metrics)
+        run.log_metrics(_finite_metrics(metrics))
+        run.log_artifact(args.metrics)
+        _write_figures(figures, args.figures_dir, layout.ANALYSIS_FIGURES, run)
+    print(f"{args.metrics}: {len(metrics)} metrics, {len(tables)} tables, {len(figures)} figures")
+
+
+def cmd_train_cr3bp(args: argparse.Namespace) -> None:
+    import pandas as pd
+    import torch
+
+    from amorgs import tracking
+    from amorgs.data.io import atomic_path
+    from amorgs.models import cvae, lstm
+    from amorgs.models.cr3bp_models import TRAINERS, subsample
+    from amorgs.models.training import TrainConfig
+
+    torch.set_num_threads(args.threads)
+    hq = pd.read_parquet(args.data)
+    train_labels = {alpha_label(a) for a in args.train_alphas}
+    hq = hq[hq["alpha"].map(alpha_label).isin(train_labels)].reset_index(drop=True)
+    if len(hq) < 2:
+        raise SystemExit(f"{args.data}: {len(hq)} high-quality row(s) at the training α {sorted(train_labels)}; need ≥ 2")
+    wildcards = {"problem": "cr3bp", "model": args.model}
+    if args.fraction is not None:
+        wildcards["fraction"] = args.fraction_label
+        hq = subsample(hq, args.fraction, args.seed)
+    rule = "train_cr3bp" if args.fraction is None else "train_cr3bp_fraction"
+    with tracking.job_run(rule, wildcards) as run:
+        cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.learning_rate, seed=args.seed, device="cpu")
+        run.log_params({"preset": args.preset, "rows": len(hq), "train_alphas": sorted(train_labels),
+                        "fraction": args.fraction, "threads": args.threads, **vars(cfg)})
+        torch.manual_seed(args.seed)
+        model = TRAINERS[args.model](hq, args.preset, cfg, on_epoch=lambda epoch, m: run.log_metrics(m, step=epoch))
+        with atomic_path(args.output) as tmp:
+            (lstm.save if args.model == "lstm" else cvae.save)(model, tmp)
+        run.log_artifact(args.output, "models")
+    print(f"{args.output}: {args.model} trained {args.epochs} epochs on {len(hq)} solutions")
+
+
+def cmd_predict_cr3bp(args: argparse.Namespace) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import numpy as np
+    import pandas as pd
+
+    from amorgs import layout, tracking
+    from amorgs.analysis.prediction import at_alpha, prediction_table
+    from amorgs.data.io import write_json, write_parquet
+    from amorgs.figures.prediction import (
+        fig17_time_predictions,
+        fig18_data_fraction,
+        fig19_final_mass,
+        fig20_control_statistics,
+    )
+    from amorgs.models import cvae
+    from amorgs.models.samplers import CVAETimeMassUniformControl, build_sampler
+    from amorgs.problems import get_problem
+
+    problem = get_problem("cr3bp")
+    names = list(problem.variable_names)
+    fractions = {float(f): path for f, path in (item.split("=", 1) for item in args.fraction_models)}
+    samplers = {("amorgs", 1.0): build_sampler("amorgs", problem, args.models_dir),
+                ("uniform", 1.0): build_sampler("uniform", problem, args.models_dir)}
+    for f, path in fractions.items():
+        samplers[("cvae_gmm", f)] = CVAETimeMassUniformControl(problem, cvae.load(path))
+    with tracking.job_run("predict_cr3bp", {"problem": "cr3bp"}) as run:
+        run.log_params({"n_samples": args.n_samples, "seed": args.seed, "test_alphas": args.test_alphas,
+                        "data_fractions": sorted(fractions)})
+        rng = np.random.default_rng(args.seed)
+        frames = []
+        for (source, fraction), sampler in samplers.items():
+            for alpha in args.test_alphas:
+                frame = pd.DataFrame(sampler.sample(alpha, args.n_samples, rng), columns=names)
+                frame.insert(0, "alpha", alpha)
+                frame.insert(1, "source", source)
+                frame.insert(2, "data_fraction", fraction)
+                frame.insert(3, "sample", range(len(frame)))
+                frames.append(frame)
+        samples = pd.concat(frames, ignore_index=True)
+        hq = pd.read_parquet(args.high_quality)
+        truth = pd.concat([at_alpha(hq, a) for a in args.test_alphas], ignore_index=True)
+        learned = samples[samples["source"] != "uniform"]
+        table = prediction_table(learned, truth, by=("alpha", "source", "data_fraction"))
+        write_parquet(samples, args.samples)
+        write_json({"n_samples": args.n_samples, "rows": table.to_dict(orient="records")}, args.metrics)
+        for row in table.to_dict(orient="records"):
+            suffix = f"{row['source']}_f{row['data_fraction']:g}/{_alpha_key(row['alpha'])}"
+            run.log_metrics(_finite_metrics({f"{k}/{suffix}": v for k, v in row.items() if k not in ("alpha", "source", "data_fraction")}))
+        run.log_artifact(args.metrics)
+        amorgs = samples[samples["source"] == "amorgs"]
+        by_fraction = {1.0: amorgs, **{f: samples[(samples["source"] == "cvae_gmm") & (samples["data_fraction"] == f)] for f in fractions}}
+        figures = {
+            "fig17_time_predictions": fig17_time_predictions(amorgs, truth, args.test_alphas),
+            "fig18_data_fraction": fig18_data_fraction(dict(sorted(by_fraction.items())), truth, args.test_alphas),
+            "fig19_final_mass": fig19_final_mass(amorgs, truth, args.test_alphas),
+            "fig20_control_statistics": fig20_control_statistics(
+                {"LSTM": amorgs, "Ground truth": truth, "Uniform": samples[samples["source"] == "uniform"]}, args.test_alphas
+            ),
+        }
+        _write_figures(figures, args.figures_dir, layout.PREDICTION_FIGURES, run)
+    print(f"{args.samples}: {len(samples)} samples at {len(args.test_alphas)} test α")
+
+
+def cmd_ablation_cell(args: argparse.Namespace) -> None:
+    from amorgs import tracking
+    from amorgs.ablation.experiment import run_cell
+    from amorgs.data.io import write_parquet
+    from amorgs.models.samplers import build_sampler
+    from amorgs.problems import get_problem
+
+    options = json.loads(args.solver_options)
+    wildcards = {"alpha": alpha_label(args.alpha), "sampler": args.sampler}
+    with tracking.job_run("ablation_cell", wildcards) as run:
+        run.log_params({"alpha": args.alpha, "seed": args.seed, "starts": args.starts, "workers": args.workers, "solver": options})
+        if args.sampler != "uniform" and not args.models_dir:
+            raise SystemExit(f"ablation-cell: sampler {args.sampler!r} needs --models-dir")
+        sampler = build_sampler(args.sampler, get_problem("cr3bp"), args.models_dir)
+        df = run_cell("cr3bp", args.alpha, sampler, args.starts, args.seed, options, args.workers)
+        write_parquet(df, args.output)
+        conv = df[df["converged"]]
+        run.log_metrics(
+            {
+                "starts": len(df),
+                "converged": len(conv),
+                "converged_fraction": len(conv) / len(df),
+                "iterations_median": conv["iterations"].median() if len(conv) else None,
+                "solve_wall_s_total": df["wall_s"].sum(),
+            }
+        )
+    print(f"{args.output}: {len(df)} solves, {len(conv)} converged")
+
+
+def cmd_ablation_report(args: argparse.Namespace) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import pandas as pd
+
+    from amorgs import layout, tracking
+    from amorgs.ablation.report import summarize, table6_markdown
+    from amorgs.data.io import atomic_path, write_json
+
+    with tracking.job_run("ablation_report", {}) as run:
+        run.log_params({"beta_kg": args.beta, "cells": len(args.cells)})
+        metrics, tables, figures = summarize(_read_tables(args.cells), pd.read_parquet(args.high_quality), args.beta)
+        for key, path in (("table6", args.table6_csv), ("capped", args.capped), ("coverage", args.coverage)):
+            with atomic_path(path) as tmp:
+                tables[key].to_csv(tmp, index=False)
+        with atomic_path(args.table6_md) as tmp:
+            tmp.write_text(table6_markdown(tables["table6"]) + "\n")
+        write_json(metrics, args.summary)
+        run.log_metrics(_finite_metrics(metrics))
+        for path in (args.summary, args.table6_csv, args.table6_md, args.capped, args.coverage):
+            run.log_artifact(path, "tables")
+        _write_figures(figures, args.figures_dir, layout.ABLATION_FIGURES, run)
+    print(f"{args.summary}: {len(metrics)} metrics over {len(args.cells)} cells")
+
+
 # -------------------------------------------------------------------------------------------- tools
+
+
+def cmd_library_export(args: argparse.Namespace) -> None:
+    from amorgs.data.library import export_library
+
+    summary = export_library(args.solutions_dir, args.library_dir, args.problem, args.config)
+    print(
+        f"{args.library_dir}/{args.problem}: {summary['copied']} new shard(s); library now {summary['shards']} shards, "
+        f"{summary['rows']} solves ({summary['converged']} converged, {summary['cpu_hours']:.2f} CPU-hours)"
+    )
 
 
 def cmd_boundary_conditions(args: argparse.Namespace) -> None:
@@ -291,7 +529,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("merge", help="merge the shard tables of one (problem, α)")
     p.add_argument("--problem", required=True, choices=("dejong", "cr3bp"))
     p.add_argument("--alpha", required=True, help="α label, e.g. 0.150")
-    p.add_argument("--inputs", required=True, nargs="+")
+    p.add_argument("--inputs", required=True, nargs="+", help="fresh shard tables (source = fresh)")
+    p.add_argument("--library", nargs="*", default=[], help="library shard tables (source = library)")
     p.add_argument("--output", required=True)
     p.set_defaults(func=cmd_merge)
 
@@ -336,6 +575,73 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--train-alphas", required=True, type=float, nargs="+")
     p.add_argument("--output", required=True)
     p.set_defaults(func=cmd_fig16_dejong_predictions)
+
+    p = sub.add_parser("analyze-cr3bp", help="structure analysis of the CR3BP solutions, Figs. 3-13")
+    p.add_argument("--inputs", required=True, nargs="+", help="merged α tables (every solve)")
+    p.add_argument("--high-quality", required=True)
+    p.add_argument("--beta", required=True, type=float, help="β, the final-mass threshold (kg)")
+    p.add_argument("--params", default="{}", help="JSON object of StructureParams fields")
+    p.add_argument("--metrics", required=True)
+    p.add_argument("--tables-dir", required=True)
+    p.add_argument("--figures-dir", required=True)
+    p.set_defaults(func=cmd_analyze_cr3bp)
+
+    p = sub.add_parser("train-cr3bp", help="train one CR3BP model on the high-quality rows at the training α")
+    p.add_argument("--data", required=True, help="high_quality.parquet")
+    p.add_argument("--train-alphas", required=True, type=float, nargs="+")
+    p.add_argument("--model", required=True, choices=("cvae_gmm", "vanilla_cvae", "lstm"))
+    p.add_argument("--fraction", type=float, help="train on this fraction of the rows of every α (Fig. 18)")
+    p.add_argument("--fraction-label", help="the fraction as in the output path (with --fraction)")
+    p.add_argument("--preset", required=True, choices=("paper", "small"))
+    p.add_argument("--learning-rate", required=True, type=float)
+    p.add_argument("--epochs", required=True, type=int)
+    p.add_argument("--batch-size", required=True, type=int)
+    p.add_argument("--seed", required=True, type=int)
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    p.add_argument("--output", required=True)
+    p.set_defaults(func=cmd_train_cr3bp)
+
+    p = sub.add_parser("predict-cr3bp", help="sample the CR3BP models at the test α; Figs. 17-20")
+    p.add_argument("--models-dir", required=True, help="folder of cvae_gmm.pt, vanilla_cvae.pt, lstm.pt")
+    p.add_argument("--fraction-models", nargs="*", default=[], help="FRACTION=PATH of the reduced-data GMM-CVAEs")
+    p.add_argument("--high-quality", required=True, help="ground truth: its rows at the test α")
+    p.add_argument("--test-alphas", required=True, type=float, nargs="+")
+    p.add_argument("--n-samples", required=True, type=int)
+    p.add_argument("--seed", required=True, type=int)
+    p.add_argument("--samples", required=True)
+    p.add_argument("--metrics", required=True)
+    p.add_argument("--figures-dir", required=True)
+    p.set_defaults(func=cmd_predict_cr3bp)
+
+    p = sub.add_parser("ablation-cell", help="solve the guesses of one sampler at one test α")
+    p.add_argument("--alpha", required=True, type=float)
+    p.add_argument("--sampler", required=True, choices=("uniform", "cvae_uniform_control", "uniform_lstm_control", "vanilla_cvae", "amorgs"))
+    p.add_argument("--models-dir", help="folder of the checkpoints (every sampler but uniform)")
+    p.add_argument("--starts", required=True, type=int)
+    p.add_argument("--seed", required=True, type=int)
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--solver-options", default="{}", help="JSON object of solver options")
+    p.add_argument("--output", required=True)
+    p.set_defaults(func=cmd_ablation_cell)
+
+    p = sub.add_parser("ablation-report", help="Table 6, capped study, coverage and Figs. 21-23")
+    p.add_argument("--cells", required=True, nargs="+")
+    p.add_argument("--high-quality", required=True)
+    p.add_argument("--beta", required=True, type=float)
+    p.add_argument("--summary", required=True)
+    p.add_argument("--table6-csv", required=True)
+    p.add_argument("--table6-md", required=True)
+    p.add_argument("--capped", required=True)
+    p.add_argument("--coverage", required=True)
+    p.add_argument("--figures-dir", required=True)
+    p.set_defaults(func=cmd_ablation_report)
+
+    p = sub.add_parser("library-export", help="copy finished shards into the versioned solution library")
+    p.add_argument("--problem", default="cr3bp", choices=("dejong", "cr3bp"))
+    p.add_argument("--solutions-dir", default="results/cr3bp/solutions", help="where the generate rule wrote the shards")
+    p.add_argument("--library-dir", default="data/library")
+    p.add_argument("--config", default="config/library.yaml", help="the config that generated them (provenance)")
+    p.set_defaults(func=cmd_library_export)
 
     p = sub.add_parser("boundary-conditions", help="recompute (or --check) the CR3BP boundary conditions")
     p.add_argument("--output", help="the resource file (default: resources/boundary_conditions.json)")

@@ -111,12 +111,22 @@ class Cr3bpFilter:
 
 
 @dataclass(frozen=True)
+class Library:
+    """The versioned solution library: with ``enabled``, the merge of every α also takes the committed shards
+    under ``path``/{problem}/alpha={label}/ (see :mod:`amorgs.data.library`)."""
+
+    enabled: bool
+    path: str
+
+
+@dataclass(frozen=True)
 class ProblemConfig:
     """What the generate → merge → filter stages do for one problem."""
 
     enabled: bool
     alphas: Alphas
     generate: Generate
+    library: Library
 
     def alpha_values(self) -> dict[str, float]:
         """Label → α for every generated α (train, then test), in config order."""
@@ -170,6 +180,7 @@ class Resources:
     train: Job
     predict: Job
     figure: Job
+    analyze: Job
 
 
 @dataclass(frozen=True)
@@ -193,6 +204,50 @@ class DejongCVAE:
 
 
 @dataclass(frozen=True)
+class Cr3bpAnalysis:
+    """The structure analysis of the CR3BP solutions (paper Sec. III.B, Figs. 3–13); ``params`` are the
+    fields of :class:`amorgs.analysis.structure_report.StructureParams` (empty: its defaults)."""
+
+    enabled: bool
+    params: dict
+
+
+@dataclass(frozen=True)
+class Cr3bpModels:
+    """The three CR3BP generative models (paper Sec. IV, Tables 4–5), trained on the training α only.
+
+    ``preset`` (``paper`` or ``small``) picks the layer widths; Adam with ``learning_rate`` for ``epochs``
+    epochs of ``batch_size`` rows; ``seed`` fixes weights, shuffling, subsampling and sampling;
+    ``data_fractions``: extra GMM-CVAEs trained on these fractions of the data (Fig. 18); ``n_samples``:
+    samples drawn per test α for the prediction study (Figs. 17–20).
+    """
+
+    enabled: bool
+    preset: str
+    epochs: int
+    batch_size: int
+    learning_rate: float
+    seed: int
+    data_fractions: tuple[float, ...]
+    n_samples: int
+
+
+@dataclass(frozen=True)
+class Ablation:
+    """The warm-start ablation at the CR3BP test α (paper Sec. V.B.7, Table 6): per (test α, sampler) one job
+    solving ``n_starts`` guesses with ``workers`` processes, the CR3BP solver options and a seed derived from
+    ``seed``; ``mem_mb`` and ``runtime_min`` are that job's resources."""
+
+    enabled: bool
+    samplers: tuple[str, ...]
+    n_starts: int
+    seed: int
+    workers: int
+    mem_mb: int
+    runtime_min: int
+
+
+@dataclass(frozen=True)
 class Config:
     """The whole workflow configuration; ``seed`` is the base of every derived seed."""
 
@@ -201,6 +256,9 @@ class Config:
     resources: Resources
     problems: Problems
     dejong_cvae: DejongCVAE
+    cr3bp_analysis: Cr3bpAnalysis
+    cr3bp_models: Cr3bpModels
+    ablation: Ablation
 
     @property
     def hash(self) -> str:
@@ -271,6 +329,8 @@ def _build(tp: object, value: object) -> object:
             return None
         options = [t for t in typing.get_args(tp) if t is not type(None)]
         return next(_build(t, value) for t in options if dataclasses.is_dataclass(t) == isinstance(value, dict))
+    if tp is dict:
+        return dict(value)
     if origin is tuple:
         return tuple(_build(typing.get_args(tp)[0], v) for v in value)
     if tp is float:
@@ -296,3 +356,13 @@ def _check(cfg: Config, source: str) -> None:
         raise ConfigError(f"{source}: dejong_cvae.enabled needs problems.dejong.enabled: true")
     if cvae.enabled and not cfg.problems.dejong.alphas.test:
         raise ConfigError(f"{source}: dejong_cvae.enabled needs test α in problems.dejong.alphas.test")
+    cr3bp = cfg.problems.cr3bp
+    for key in ("cr3bp_analysis", "cr3bp_models", "ablation"):
+        if getattr(cfg, key).enabled and not cr3bp.enabled:
+            raise ConfigError(f"{source}: {key}.enabled needs problems.cr3bp.enabled: true")
+    for key in ("cr3bp_models", "ablation"):
+        if getattr(cfg, key).enabled and not cr3bp.alphas.test:
+            raise ConfigError(f"{source}: {key}.enabled needs test α in problems.cr3bp.alphas.test")
+    learned = [s for s in cfg.ablation.samplers if s != "uniform"]
+    if cfg.ablation.enabled and learned and not cfg.cr3bp_models.enabled:
+        raise ConfigError(f"{source}: ablation.samplers {learned} need cr3bp_models.enabled: true")

@@ -1,7 +1,7 @@
 """The real workflow: lint, dry runs, config errors, the smoke run with MLflow, and an interrupted run.
 
-Each test copies the Snakefile, workflow/ and config/ into a temporary directory and runs the real
-``snakemake`` there, so the repository's own results/ are never touched.
+Each test copies the Snakefile, workflow/, config/ and the solution library (data/library) into a temporary
+directory and runs the real ``snakemake`` there, so the repository's own results/ are never touched.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ def workdir(tmp_path: Path, config: dict | None = None) -> Path:
     wd = tmp_path / "wf"
     wd.mkdir(parents=True)
     shutil.copy(ROOT / "Snakefile", wd)
-    for d in ("workflow", "config"):
+    for d in ("workflow", "config", "data/library"):
         shutil.copytree(ROOT / d, wd / d)
     if config is not None:
         (wd / "config" / "test.yaml").write_text(yaml.safe_dump(config))
@@ -58,7 +58,11 @@ def test_slurm_profile_dry_run(tmp_path):
     res = snakemake(wd, "-n", "--profile", "workflow/profiles/slurm", "--configfile", "config/paper.yaml")
     out = res.stdout + res.stderr
     assert res.returncode == 0, out
-    assert "generate" in out and "filter" in out and "train_dejong_cvae" in out
+    for rule in ("generate", "filter", "train_dejong_cvae", "analyze_cr3bp", "train_cr3bp", "train_cr3bp_fraction",
+                 "predict_cr3bp", "ablation_cell", "ablation_report"):
+        assert f"rule {rule}:" in out, rule
+    # the paper's ablation: 200 starts per (test α, sampler), 16 workers each
+    assert "--starts 200 --seed" in out and "ablation-cell" in out
     # cr3bp generate jobs ask for the runtime and memory of config/paper.yaml
     assert "runtime=1440" in out and "mem_mb=16000" in out
 
@@ -134,7 +138,11 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
         return next(c for c in children if tags.items() <= c.data.tags.items())
 
     assert 0 < child("generate", problem="dejong", alpha="0.000", shard="0").data.metrics["converged_fraction"] <= 1
-    assert child("generate", problem="cr3bp", alpha="1.000", shard="0").data.metrics["starts"] == 4
+    assert child("generate", problem="cr3bp", alpha="0.700", shard="0").data.metrics["starts"] == 1
+    merged = child("merge", problem="cr3bp", alpha="0.700").data.metrics
+    assert merged["rows_library"] > 0 and merged["library_shards"] > 0
+    alpha_table = pd.read_parquet(wd / "results" / "cr3bp" / "solutions" / "alpha=0.700.parquet")
+    assert set(alpha_table["source"]) == {"library", "fresh"}
     assert child("filter", problem="dejong").data.metrics["high_quality"] > 0
     assert "converged_fraction/alpha_0.150" in child("filter", problem="cr3bp").data.metrics
     train = child("train_dejong_cvae")
@@ -147,6 +155,36 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
     for name in ("fig02_foxholes", "fig16_dejong_predictions"):
         artifacts = [a.path for a in client.list_artifacts(child(name).info.run_id, "figures")]
         assert artifacts == [f"figures/{name}.png"]
+
+    # CR3BP: analysis, models (trained on the training α only), predictions, ablation
+    from amorgs import layout
+
+    analysis = child("analyze_cr3bp")
+    assert analysis.data.metrics
+    assert {a.path for a in client.list_artifacts(analysis.info.run_id, "figures")} == {
+        f"figures/{n}.png" for n in layout.ANALYSIS_FIGURES
+    }
+    for model in layout.CR3BP_MODELS:
+        train = child("train_cr3bp", model=model)
+        history = client.get_metric_history(train.info.run_id, "loss")
+        assert [m.step for m in history] == list(range(1, cfg.cr3bp_models.epochs + 1))
+        assert [a.path for a in client.list_artifacts(train.info.run_id, "models")] == [f"models/{model}.pt"]
+        assert json.loads(train.data.params["train_alphas"]) == ["0.700", "0.800", "0.900"]
+    full_rows = int(child("train_cr3bp", model="cvae_gmm").data.params["rows"])
+    assert int(child("train_cr3bp_fraction", fraction="0.1").data.params["rows"]) < full_rows
+    predict = child("predict_cr3bp")
+    assert "n_samples/amorgs_f1/alpha_0.150" in predict.data.metrics
+    assert {a.path for a in client.list_artifacts(predict.info.run_id, "figures")} == {
+        f"figures/{n}.png" for n in layout.PREDICTION_FIGURES
+    }
+    cell = child("ablation_cell", alpha="0.150", sampler="amorgs").data.metrics
+    assert cell["starts"] == cfg.ablation.n_starts
+    report_run = child("ablation_report")
+    assert any(k.startswith("percent_hq_") for k in report_run.data.metrics)
+    assert {a.path for a in client.list_artifacts(report_run.info.run_id, "figures")} == {
+        f"figures/{n}.png" for n in layout.ABLATION_FIGURES
+    }
+    assert "AmorGS" in (wd / "results" / "tables" / "table6.md").read_text()
 
     res = snakemake(wd, "--report", "report.html", "--configfile", "config/smoke.yaml")
     assert res.returncode == 0, res.stderr[-3000:]

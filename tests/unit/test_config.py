@@ -158,3 +158,63 @@ def _mirror(cls: type, node: dict, schema: dict, path: str) -> None:
 def test_dataclasses_mirror_the_schema():
     schema = yaml.safe_load(SCHEMA.read_text())
     _mirror(C.Config, schema, schema, "config")
+
+
+@pytest.mark.parametrize(
+    ("section", "key"),
+    [("cr3bp_models", "epochz"), ("ablation", "n_startz"), ("cr3bp_analysis", "paramz")],
+)
+def test_unknown_key_in_cr3bp_stage_sections_is_named(tmp_path, section, key):
+    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    mapping[section][key] = 1
+    with pytest.raises(C.ConfigError) as err:
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+    assert f"{section}: Additional properties are not allowed ('{key}' was unexpected)" in str(err.value)
+
+
+def test_library_section_is_checked(tmp_path):
+    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    mapping["problems"]["cr3bp"]["library"]["enabled"] = "yes"
+    del mapping["problems"]["dejong"]["library"]
+    with pytest.raises(C.ConfigError) as err:
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+    msg = str(err.value)
+    assert "problems.cr3bp.library.enabled: 'yes' is not of type 'boolean'" in msg
+    assert "problems.dejong: 'library' is a required property" in msg
+
+
+def test_ablation_sampler_names_and_model_dependency(tmp_path):
+    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    mapping["ablation"]["samplers"] = ["uniform", "amorgz"]
+    with pytest.raises(C.ConfigError, match=r"ablation\.samplers\.1: 'amorgz' is not one of"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+    mapping["ablation"]["samplers"] = ["uniform", "amorgs"]
+    mapping["cr3bp_models"]["enabled"] = False
+    with pytest.raises(C.ConfigError, match=r"ablation\.samplers \['amorgs'\] need cr3bp_models\.enabled"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+    mapping["ablation"]["samplers"] = ["uniform"]
+    assert C.load_config(write(tmp_path, mapping), SCHEMA).ablation.samplers == ("uniform",)
+
+
+def test_cr3bp_stages_need_cr3bp_and_test_alphas(tmp_path):
+    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    mapping["problems"]["cr3bp"]["alphas"]["test"] = []
+    with pytest.raises(C.ConfigError, match=r"cr3bp_models\.enabled needs test α in problems\.cr3bp\.alphas\.test"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+    mapping["problems"]["cr3bp"]["enabled"] = False
+    with pytest.raises(C.ConfigError, match=r"cr3bp_analysis\.enabled needs problems\.cr3bp\.enabled"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+
+
+def test_cr3bp_targets_and_jobs():
+    from amorgs.checks import expected_jobs
+
+    cfg = load("smoke")
+    targets = layout.targets(cfg)
+    assert "results/cr3bp/models/fraction=0.1/cvae_gmm.pt" in targets
+    assert "results/cr3bp/ablation/alpha=0.850/amorgs.parquet" in targets
+    assert {"results/tables/table6.md", "results/cr3bp/analysis/metrics.json", "results/figures/fig23_amorgs_diversity.png"} <= set(targets)
+    jobs = expected_jobs(cfg)
+    assert ("train_cr3bp_fraction", {"problem": "cr3bp", "model": "cvae_gmm", "fraction": "0.5"}) in jobs
+    assert sum(rule == "ablation_cell" for rule, _ in jobs) == len(cfg.problems.cr3bp.alphas.test) * len(cfg.ablation.samplers)
+    assert not any(rule.startswith("fig03") for rule, _ in jobs)  # drawn by analyze_cr3bp, not a rule of its own

@@ -115,3 +115,14 @@ def test_shard_seeds_are_stable_and_distinct():
     assert s not in others and len(others) == 4
     with pytest.raises(ValueError):
         seeds.shard_seed(1, "dejong", 0.1, -1)
+
+
+def test_cell_seed_is_stable_and_distinct_per_sampler_and_alpha():
+    from amorgs.data.seeds import cell_seed
+
+    a = cell_seed(13, "cr3bp", 0.15, "amorgs")
+    assert a == cell_seed(13, "cr3bp", 0.15, "amorgs")
+    others = {cell_seed(13, "cr3bp", 0.15, "uniform"), cell_seed(13, "cr3bp", 0.85, "amorgs"), cell_seed(14, "cr3bp", 0.15, "amorgs")}
+    assert a not in others and len(others) == 3
+    with pytest.raises(ValueError):
+        cell_seed(-1, "cr3bp", 0.15, "amorgs")

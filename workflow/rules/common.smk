@@ -9,7 +9,8 @@ from snakemake_interface_executor_plugins.settings import DeploymentMethod
 
 from amorgs import layout
 from amorgs.config import load_workflow_config
-from amorgs.data.seeds import shard_seed
+from amorgs.data.library import library_shards as _library_shards
+from amorgs.data.seeds import cell_seed, shard_seed
 
 
 CFG = load_workflow_config(config, workflow.configfiles, workflow.source_path("../schemas/config.schema.yaml"))
@@ -28,11 +29,19 @@ wildcard_constraints:
     problem="dejong|cr3bp",
     alpha=r"\d+\.\d{3}",
     shard=r"\d+",
+    model="cvae_gmm|vanilla_cvae|lstm",
+    fraction=r"0\.\d+",
+    sampler="|".join(CFG.ablation.samplers),
 
 
 def problem_cfg(wildcards):
     """The config section of the {problem} wildcard."""
     return getattr(CFG.problems, wildcards.problem)
+
+
+def floats(values):
+    """A list of numbers as one shell argument list."""
+    return " ".join(map(repr, values))
 
 
 def alpha_value(wildcards):
@@ -43,6 +52,28 @@ def alpha_value(wildcards):
 def seed_of_shard(wildcards):
     """The seed of one generate job, derived from (base seed, problem, α, shard)."""
     return shard_seed(CFG.seed, wildcards.problem, alpha_value(wildcards), int(wildcards.shard))
+
+
+def library_shards(wildcards):
+    """The committed library shards of this (problem, α), if the problem's library is enabled."""
+    library = problem_cfg(wildcards).library
+    if not library.enabled:
+        return []
+    return [str(p) for p in _library_shards(library.path, wildcards.problem, wildcards.alpha)]
+
+
+def seed_of_cell(wildcards):
+    """The seed of one ablation cell, derived from (ablation seed, α, sampler)."""
+    return cell_seed(CFG.ablation.seed, "cr3bp", CFG.problems.cr3bp.alpha_values()[wildcards.alpha], wildcards.sampler)
+
+
+def train_cr3bp_params():
+    """The training settings shared by train_cr3bp and train_cr3bp_fraction."""
+    m = CFG.cr3bp_models
+    return (
+        f"--train-alphas {floats(CFG.problems.cr3bp.alphas.train_values())} --preset {m.preset} "
+        f"--learning-rate {m.learning_rate!r} --epochs {m.epochs} --batch-size {m.batch_size} --seed {m.seed}"
+    )
 
 
 def solver_options(wildcards):

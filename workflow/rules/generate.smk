@@ -1,4 +1,5 @@
-# Stage 1: multi-start local solves, one job per (problem, α, shard), then one merged table per (problem, α).
+# Stage 1: multi-start local solves, one job per (problem, α, shard), then one merged table per (problem, α):
+# the fresh shards plus, with problems.<name>.library.enabled, the committed library shards of that α.
 
 
 rule generate:
@@ -25,7 +26,8 @@ rule generate:
 
 rule merge:
     input:
-        lambda w: layout.shard_paths(CFG, w.problem, w.alpha),
+        fresh=lambda w: layout.shard_paths(CFG, w.problem, w.alpha),
+        library=library_shards,
     output:
         layout.ALPHA_TABLE,
     log:
@@ -38,4 +40,4 @@ rule merge:
         "../envs/amorgs.yaml"
     shell:
         "python -m amorgs merge --problem {wildcards.problem} --alpha {wildcards.alpha} "
-        "--inputs {input} --output {output} > {log} 2>&1"
+        "--inputs {input.fresh} --library {input.library} --output {output} > {log} 2>&1"

@@ -22,3 +22,12 @@ def shard_seed(base_seed: int, problem: str, alpha: float, shard: int) -> int:
         raise ValueError(f"base_seed and shard must be ≥ 0, got {base_seed}, {shard}")
     entropy = [int(base_seed), zlib.crc32(problem.encode()), int(round(float(alpha) * 1_000_000)), int(shard)]
     return int(np.random.SeedSequence(entropy).generate_state(1, dtype=np.uint32)[0])
+
+
+def cell_seed(base_seed: int, problem: str, alpha: float, sampler: str) -> int:
+    """The seed of one ablation cell (``sampler`` at ``alpha``), mixed like :func:`shard_seed` with the
+    sampler's name in place of the shard number."""
+    if base_seed < 0:
+        raise ValueError(f"base_seed must be ≥ 0, got {base_seed}")
+    entropy = [int(base_seed), zlib.crc32(problem.encode()), int(round(float(alpha) * 1_000_000)), zlib.crc32(sampler.encode())]
+    return int(np.random.SeedSequence(entropy).generate_state(1, dtype=np.uint32)[0])
