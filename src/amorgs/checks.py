@@ -1,7 +1,7 @@
 """``amorgs check-outputs``: does the results tree hold everything a config promises?
 
-Every output must exist and be non-empty; solution tables (merged α tables, ablation cells) must pass the
-table schema and hold rows;
+Every output must exist and be non-empty; solution tables must pass the table schema and hold rows (ablation
+cells: the key columns, ``sampler``, ``converged``, ``wall_s``);
 figures must be PNG files; JSON must parse; and, with MLflow enabled, every job of the config must have a
 FINISHED run in the store (from this or an earlier invocation), every figure must be logged as an
 artifact, and the latest workflow run must have FINISHED.
@@ -64,7 +64,14 @@ def _check_file(path: str) -> str | None:
             return f"{path}: not a PNG image"
         if p.suffix == ".json":
             json.loads(p.read_text())
-        if p.suffix == ".parquet" and ("/solutions/" in path or "/ablation/" in path):
+        if p.suffix == ".parquet" and "/ablation/" in path:
+            df = pd.read_parquet(p)
+            missing = [c for c in ("problem", "alpha", "seed", "start", "sampler", "converged", "wall_s") if c not in df.columns]
+            if missing:
+                return f"{path}: ablation cell lacks column(s) {missing}"
+            if df.empty:
+                return f"{path}: no rows"
+        if p.suffix == ".parquet" and "/solutions/" in path:
             df = pd.read_parquet(p)
             validate_solutions(df, where=path)
             if df.empty:
