@@ -397,16 +397,20 @@ def cmd_ablation_cell(args: argparse.Namespace) -> None:
     from amorgs import tracking
     from amorgs.ablation.experiment import run_cell
     from amorgs.data.io import write_parquet
-    from amorgs.models.samplers import build_sampler
+    from amorgs.models.samplers import UniformSampler, build_sampler
     from amorgs.problems import get_problem
 
     options = json.loads(args.solver_options)
     wildcards = {"alpha": alpha_label(args.alpha), "sampler": args.sampler}
     with tracking.job_run("ablation_cell", wildcards) as run:
         run.log_params({"alpha": args.alpha, "seed": args.seed, "starts": args.starts, "workers": args.workers, "solver": options})
-        if args.sampler != "uniform" and not args.models_dir:
+        problem = get_problem("cr3bp")
+        if args.sampler == "uniform":
+            sampler = UniformSampler(problem)
+        elif args.models_dir:
+            sampler = build_sampler(args.sampler, problem, args.models_dir)
+        else:
             raise SystemExit(f"ablation-cell: sampler {args.sampler!r} needs --models-dir")
-        sampler = build_sampler(args.sampler, get_problem("cr3bp"), args.models_dir)
         df = run_cell("cr3bp", args.alpha, sampler, args.starts, args.seed, options, args.workers)
         write_parquet(df, args.output)
         conv = df[df["converged"]]
