@@ -81,6 +81,14 @@ def _check_file(path: str) -> str | None:
     return None
 
 
+#: The one problem reported when the outputs are complete but the MLflow store is gone (exit status 3).
+UNTRACKED = (
+    "MLflow: no tracking store (results/mlflow/ was deleted or never written): the outputs are untracked. "
+    "The files are the source of truth, only the MLflow history is lost; rerun the jobs to track them "
+    "(snakemake --forceall), or check the files alone with --no-mlflow"
+)
+
+
 def check_outputs(cfg: Config, tracked: bool = True) -> list[str]:
     """Every problem found with the outputs of ``cfg`` (an empty list when all is well)."""
     files = list(layout.targets(cfg))
@@ -104,8 +112,8 @@ def _check_tracking(cfg: Config) -> list[str]:
 
     try:
         store = tracking.tracked_jobs()
-    except FileNotFoundError as exc:
-        return [f"MLflow: no workflow invocation recorded ({exc})"]
+    except FileNotFoundError:
+        return [UNTRACKED]
     problems = []
     if store["parent_status"] != "FINISHED":
         problems.append(f"MLflow: the latest workflow run is {store['parent_status']}, not FINISHED")

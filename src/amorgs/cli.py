@@ -14,7 +14,8 @@ Workflow steps (each called by one Snakemake rule, each mirrored to MLflow as on
     ablation-cell             one (test α, sampler) warm-start cell               → cell table
     ablation-report           Table 6, capped study, coverage, Figs. 21–23        → tables + summary
 
-Tools: ``library-export`` (copy finished CR3BP shards into the versioned library, ``data/library``),
+Tools: ``library-export`` (check finished library-config shards and consolidate them into the versioned
+library, ``data/library``), ``library-grow`` (batches of library generation, each exported),
 ``boundary-conditions`` (recompute or check ``resources/boundary_conditions.json``), ``ui`` (the
 MLflow UI on ``results/mlflow``), ``check-outputs`` (every output a config promises exists, is non-empty
 and is tracked).  Heavy imports (solvers, torch, mlflow) happen inside the subcommand that needs them.
@@ -30,6 +31,7 @@ import sys
 import time
 
 from amorgs.config import SCHEMA_PATH, ConfigError, alpha_label
+from amorgs.errors import InputError
 
 
 def _alpha_key(alpha: float) -> str:
@@ -79,14 +81,17 @@ def cmd_merge(args: argparse.Namespace) -> None:
 
     from amorgs import tracking
     from amorgs.data.io import write_parquet
-    from amorgs.data.library import SOURCE_FRESH, SOURCE_LIBRARY, tag_source
+    from amorgs.data.library import SOURCE_FRESH, SOURCE_LIBRARY, read_library_file, read_table, tag_source
     from amorgs.data.tables import merge_shards, validate_solutions
 
     with tracking.job_run("merge", {"problem": args.problem, "alpha": args.alpha}) as run:
-        fresh = tag_source(merge_shards(pd.read_parquet(p) for p in args.inputs), SOURCE_FRESH)
+        fresh = tag_source(merge_shards(read_table(p) for p in args.inputs), SOURCE_FRESH)
         parts = [fresh]
         if args.library:
-            parts.insert(0, tag_source(merge_shards(pd.read_parquet(p) for p in args.library), SOURCE_LIBRARY))
+            library = merge_shards(read_library_file(p, args.library_dir, args.problem) for p in args.library)
+            if args.library_max_rows is not None:
+                library = library.head(args.library_max_rows)
+            parts.insert(0, tag_source(library, SOURCE_LIBRARY))
         df = pd.concat(parts, ignore_index=True)
         validate_solutions(df, where=args.output)
         wrong = df[(df["problem"] != args.problem) | (df["alpha"].map(alpha_label) != args.alpha)]
@@ -96,13 +101,13 @@ def cmd_merge(args: argparse.Namespace) -> None:
         run.log_metrics(
             {
                 "shards": len(args.inputs),
-                "library_shards": len(args.library),
+                "library_files": len(args.library),
                 "rows": len(df),
                 "rows_library": len(df) - len(fresh),
                 "converged": int(df["converged"].sum()),
             }
         )
-    print(f"{args.output}: {len(df)} rows from {len(args.inputs)} fresh and {len(args.library)} library shard(s)")
+    print(f"{args.output}: {len(df)} rows from {len(args.inputs)} fresh shard(s) and {len(args.library)} library file(s)")
 
 
 def cmd_filter(args: argparse.Namespace) -> None:
@@ -460,9 +465,17 @@ def cmd_library_export(args: argparse.Namespace) -> None:
 
     summary = export_library(args.solutions_dir, args.library_dir, args.problem, args.config)
     print(
-        f"{args.library_dir}/{args.problem}: {summary['copied']} new shard(s); library now {summary['shards']} shards, "
-        f"{summary['rows']} solves ({summary['converged']} converged, {summary['cpu_hours']:.2f} CPU-hours)"
+        f"{args.library_dir}/{args.problem}: {summary['files_added']} new file(s), {summary['rows_added']} new rows; "
+        f"library now {summary['shards']} shards in {summary['files']} files, {summary['rows']} solves "
+        f"({summary['converged']} converged, {summary['cpu_hours']:.2f} CPU-hours, "
+        f"{summary['bytes_per_row']:.0f} bytes per solve)"
     )
+
+
+def cmd_library_grow(args: argparse.Namespace) -> None:
+    from amorgs.data.library_grow import grow
+
+    grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice)
 
 
 def cmd_boundary_conditions(args: argparse.Namespace) -> None:
@@ -503,10 +516,13 @@ def cmd_ui(args: argparse.Namespace) -> None:
 
 
 def cmd_check_outputs(args: argparse.Namespace) -> None:
-    from amorgs.checks import check_outputs
+    from amorgs.checks import UNTRACKED, check_outputs
     from amorgs.config import load_config
 
     problems = check_outputs(load_config(args.config, args.schema), tracked=not args.no_mlflow)
+    if problems == [UNTRACKED]:  # every file is fine; only the MLflow history is missing
+        print(f"{args.config}: every expected output is present and non-empty, but untracked\n  {UNTRACKED}", file=sys.stderr)
+        raise SystemExit(3)
     if problems:
         raise SystemExit("missing or empty outputs:\n  " + "\n  ".join(problems))
     print(f"{args.config}: every expected output is present, non-empty and tracked")
@@ -534,8 +550,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--problem", required=True, choices=("dejong", "cr3bp"))
     p.add_argument("--alpha", required=True, help="α label, e.g. 0.150")
     p.add_argument("--inputs", required=True, nargs="+", help="fresh shard tables (source = fresh)")
-    p.add_argument("--library", nargs="*", default=[], help="library shard tables (source = library)")
-    p.add_argument("--output", required=True)
+    p.add_argument("--library", nargs="*", default=[],
+                   help="library files of this α (source = library), each checked against the manifest")
+    p.add_argument("--library-dir", default="data/library", help="library root holding {problem}/provenance.json")
+    p.add_argument("--library-max-rows", type=int, default=None,
+                   help="take only the first N library rows in (shard, start) order (default: all)")
+    p.add_argument("--output", required=True, help="the merged α table (Parquet)")
     p.set_defaults(func=cmd_merge)
 
     p = sub.add_parser("filter", help="β-filter every α table of a problem; write a quality report")
@@ -640,12 +660,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--figures-dir", required=True)
     p.set_defaults(func=cmd_ablation_report)
 
-    p = sub.add_parser("library-export", help="copy finished shards into the versioned solution library")
+    p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library")
     p.add_argument("--problem", default="cr3bp", choices=("dejong", "cr3bp"))
     p.add_argument("--solutions-dir", default="results/cr3bp/solutions", help="where the generate rule wrote the shards")
     p.add_argument("--library-dir", default="data/library")
     p.add_argument("--config", default="config/library.yaml", help="the config that generated them (provenance)")
     p.set_defaults(func=cmd_library_export)
+
+    p = sub.add_parser(
+        "library-grow",
+        help="grow the library: generate the next batch of library-config shards, export, repeat",
+        epilog="example: nice -n 19 amorgs library-grow --batches 20 --hours 3   # then commit data/library",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--config", default="config/library.yaml", help="the library config (seed, α, starts per shard)")
+    p.add_argument("--problem", default="cr3bp", choices=("cr3bp",), help="problem whose library grows")
+    p.add_argument("--library-dir", default="data/library", help="library root")
+    p.add_argument("--workdir", default="results/library-grow", help="Snakemake working directory of the batches")
+    p.add_argument("--cores", type=int, default=2, help="cores Snakemake may use")
+    p.add_argument("--batches", type=int, default=1, help="batches to run (each: every α × generate.shards shards)")
+    p.add_argument("--hours", type=float, default=None, help="start no new batch after this many hours")
+    p.add_argument("--nice", type=int, default=19, help="niceness added before starting (0: none)")
+    p.set_defaults(func=cmd_library_grow)
 
     p = sub.add_parser("boundary-conditions", help="recompute (or --check) the CR3BP boundary conditions")
     p.add_argument("--output", help="the resource file (default: resources/boundary_conditions.json)")
@@ -670,5 +706,5 @@ def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
     try:
         args.func(args)
-    except ConfigError as exc:
+    except (ConfigError, InputError) as exc:
         sys.exit(f"amorgs {args.command}: {exc}")

@@ -112,11 +112,13 @@ class Cr3bpFilter:
 
 @dataclass(frozen=True)
 class Library:
-    """The versioned solution library: with ``enabled``, the merge of every α also takes the committed shards
-    under ``path``/{problem}/alpha={label}/ (see :mod:`amorgs.data.library`)."""
+    """The versioned solution library: with ``enabled``, the merge of every α also takes the committed files
+    under ``path``/{problem}/alpha={label}/ (see :mod:`amorgs.data.library`) — all of them, or with
+    ``max_rows_per_alpha`` a fixed slice of the first rows in (shard, start) order."""
 
     enabled: bool
     path: str
+    max_rows_per_alpha: int | None
 
 
 @dataclass(frozen=True)
@@ -165,10 +167,16 @@ class Problems:
 
 @dataclass(frozen=True)
 class Mlflow:
-    """Mirror runs to the MLflow SQLite store under ``results/mlflow`` in experiment ``experiment``."""
+    """Mirror runs to MLflow in experiment ``experiment``.
+
+    ``tracking_uri`` None means the SQLite store under ``results/mlflow``; otherwise any MLflow tracking URI
+    (``http://host:5000``, ``sqlite:////abs/path.db``).  The ``MLFLOW_TRACKING_URI`` environment variable, when
+    set, overrides both (see :func:`amorgs.tracking.resolve_tracking_uri`).
+    """
 
     enabled: bool
     experiment: str
+    tracking_uri: str | None
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,19 @@ can be browsed and compared.  Layout of the store (``results/mlflow/``)::
     invocation.json    the current workflow invocation: experiment, parent run id, config hash, git commit
     .lock              serialises every write (see below)
 
+The tracking URI is config ``mlflow.tracking_uri`` (``null``: the SQLite store above), overridden by the
+``MLFLOW_TRACKING_URI`` environment variable (:func:`resolve_tracking_uri`); ``invocation.json`` and ``.lock``
+stay under ``results/mlflow/`` whichever server holds the runs.
+
 One *parent* run per workflow invocation (:func:`start_invocation` in Snakemake's ``onstart``, closed by
 :func:`finish_invocation` in ``onsuccess``/``onerror``) and one *child* run per job (:func:`job_run`), tagged
-with the rule, its wildcards, the config hash, the git commit and the package versions.
+with the rule, its wildcards, the config hash, the git commit and the package versions.  Jobs log the tables
+they read as MLflow datasets (:meth:`JobRun.log_dataset`: name, digest, schema and row count, not a copy) and
+trained checkpoints as MLflow logged models whose metrics are linked to them (:meth:`JobRun.start_model`).
+
+Killed runs: a job killed by SIGTERM or SIGINT ends its child run KILLED; a workflow stopped by the user
+(Ctrl-C, or SIGTERM to Snakemake) ends its parent run KILLED (:func:`error_status`), any other failure FAILED;
+and a run left RUNNING by ``kill -9`` is closed KILLED by the next invocation.
 
 Concurrency: SQLite returns "database is locked" without waiting when a read transaction must be promoted to
 a write while another process writes, which MLflow's own busy timeout cannot prevent.  Every write to the
@@ -26,7 +36,11 @@ import datetime as _dt
 import fcntl
 import json
 import os
+import shutil
+import signal
 import socket
+import tempfile
+import threading
 import subprocess
 import sys
 import time
@@ -37,7 +51,7 @@ from pathlib import Path
 
 os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
 
-from mlflow.entities import Metric, Param  # noqa: E402
+from mlflow.entities import DatasetInput, InputTag, LoggedModelOutput, Metric, Param  # noqa: E402
 from mlflow.tracking import MlflowClient  # noqa: E402
 
 from amorgs.data.io import read_json, write_json  # noqa: E402
@@ -53,9 +67,32 @@ VERSIONED_PACKAGES = ("amorgs", "numpy", "scipy", "pandas", "pyarrow", "torch", 
 _MAX_BATCH = 900  # MLflow's log_batch accepts at most 1000 metrics
 
 
+#: The environment variable that overrides config ``mlflow.tracking_uri`` (MLflow's own name for it).
+TRACKING_URI_ENV = "MLFLOW_TRACKING_URI"
+
+
 def tracking_uri(store_dir: str | Path = STORE_DIR) -> str:
     """The explicit SQLite URI of the store (absolute path; pysqlite waits up to 60 s on a busy file)."""
     return f"sqlite:///{(Path(store_dir) / DB_NAME).resolve()}?timeout=60"
+
+
+def resolve_tracking_uri(configured: str | None = None, store_dir: str | Path = STORE_DIR) -> str:
+    """``$MLFLOW_TRACKING_URI`` if set, else ``configured`` (config ``mlflow.tracking_uri``), else the SQLite store."""
+    return os.environ.get(TRACKING_URI_ENV) or configured or tracking_uri(store_dir)
+
+
+def error_status(snakemake_log: str | Path | None) -> str:
+    """The parent run's status for Snakemake's ``onerror``: KILLED if the user stopped the workflow, else FAILED.
+
+    Snakemake logs "Terminating processes on user request" after Ctrl-C and "Will exit after finishing currently
+    running jobs" after SIGTERM; ``snakemake_log`` is the log file ``onerror`` receives.
+    """
+    try:
+        text = Path(snakemake_log).read_text(errors="replace") if snakemake_log else ""
+    except OSError:
+        text = ""
+    user_stop = ("Terminating processes on user request", "Will exit after finishing currently running jobs")
+    return "KILLED" if any(marker in text for marker in user_stop) else "FAILED"
 
 
 def package_versions() -> dict[str, str]:
@@ -114,43 +151,70 @@ def _warn(what: str, exc: BaseException) -> None:
 
 
 def start_invocation(
-    config: dict, config_hash: str, experiment: str, sources: list[str], store_dir: str | Path = STORE_DIR
+    config: dict,
+    config_hash: str,
+    experiment: str,
+    sources: list[str],
+    store_dir: str | Path = STORE_DIR,
+    uri: str | None = None,
 ) -> str | None:
     """Create the store and experiment if needed, open this invocation's parent run, write ``invocation.json``.
 
-    A parent run left RUNNING by a killed earlier invocation is closed as KILLED first.  ``config`` is the
-    validated mapping (logged as flattened params and as ``config.yaml``); ``sources`` are the config files.
-    Returns the parent run id, or ``None`` (with a warning, jobs then run untracked) if MLflow fails.
+    A parent run left RUNNING by a killed earlier invocation, and its RUNNING job runs, are closed as KILLED
+    first.  ``config`` is the validated mapping (logged as flattened params and as ``config.yaml``); ``sources``
+    are the config files.  The tracking URI is :func:`resolve_tracking_uri` of ``uri`` (default: the config's
+    ``mlflow.tracking_uri``).  Returns the parent run id, or ``None`` (with a warning, jobs then run untracked)
+    if MLflow fails.
     """
     store = Path(store_dir)
     path = store / INVOCATION_FILE
-    previous = read_json(path)["parent_run_id"] if path.exists() else None
+    previous = read_json(path) if path.exists() else None
     stop_tracking(store)  # until the new parent run exists, jobs would log nowhere
+    if uri is None:
+        uri = (config.get("mlflow") or {}).get("tracking_uri")
     try:
         with _locked(store):
-            run_id = _open_parent_run(store, config, config_hash, experiment, sources, previous)
+            run_id = _open_parent_run(store, config, config_hash, experiment, sources, previous, uri)
     except Exception as exc:  # noqa: BLE001 — tracking never fails the workflow
         _warn("opening the workflow run", exc)
         return None
     return run_id
 
 
+def _close_killed(previous: dict) -> None:
+    """Close the previous invocation's parent run and its job runs that are still RUNNING as KILLED."""
+    try:
+        client = MlflowClient(previous["tracking_uri"])
+        parent = previous["parent_run_id"]
+        children = client.search_runs(
+            [previous["experiment_id"]],
+            filter_string=f"tags.mlflow.parentRunId = '{parent}' and attributes.status = 'RUNNING'",
+            max_results=50000,
+        )
+        for run_id in [r.info.run_id for r in children] + [parent]:
+            if client.get_run(run_id).info.status == "RUNNING":
+                client.set_terminated(run_id, "KILLED")
+    except Exception:  # noqa: BLE001 — a stale record from a lost store: nothing to close
+        pass
+
+
 def _open_parent_run(
-    store: Path, config: dict, config_hash: str, experiment: str, sources: list[str], previous: str | None
+    store: Path,
+    config: dict,
+    config_hash: str,
+    experiment: str,
+    sources: list[str],
+    previous: dict | None,
+    uri: str | None = None,
 ) -> str:
-    client = MlflowClient(tracking_uri(store))
+    uri = resolve_tracking_uri(uri, store)
+    client = MlflowClient(uri)
     if previous is not None:
-        try:
-            if client.get_run(previous).info.status == "RUNNING":
-                client.set_terminated(previous, "KILLED")
-        except Exception:  # noqa: BLE001 — a stale record from a lost store: nothing to close
-            pass
+        _close_killed(previous)
     exp = client.get_experiment_by_name(experiment)
-    exp_id = (
-        exp.experiment_id
-        if exp is not None
-        else client.create_experiment(experiment, artifact_location=(store / "artifacts").resolve().as_uri())
-    )
+    # the local store keeps artifacts beside the database; a server decides where its artifacts go
+    artifacts = (store / "artifacts").resolve().as_uri() if uri == tracking_uri(store) else None
+    exp_id = exp.experiment_id if exp is not None else client.create_experiment(experiment, artifact_location=artifacts)
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
     tags = {
         "kind": "workflow",
@@ -166,7 +230,7 @@ def _open_parent_run(
         client.log_batch(run_id, params=params[i : i + 100])
     client.log_dict(run_id, config, "config.yaml")
     invocation = {
-        "tracking_uri": tracking_uri(store),
+        "tracking_uri": uri,
         "experiment_id": exp_id,
         "parent_run_id": run_id,
         "config_hash": config_hash,
@@ -183,7 +247,7 @@ def stop_tracking(store_dir: str | Path = STORE_DIR) -> None:
 
 
 def finish_invocation(status: str, store_dir: str | Path = STORE_DIR) -> None:
-    """Close the current parent run with ``status`` (``FINISHED`` or ``FAILED``); warn, never raise."""
+    """Close the current parent run with ``status`` (``FINISHED``, ``FAILED``, ``KILLED``); warn, never raise."""
     store = Path(store_dir)
     path = store / INVOCATION_FILE
     if not path.exists():
@@ -202,11 +266,16 @@ def finish_invocation(status: str, store_dir: str | Path = STORE_DIR) -> None:
 class JobRun:
     """The MLflow child run of one job; every method is a no-op once tracking is off or has failed."""
 
-    def __init__(self, store: Path, client: MlflowClient | None = None, run_id: str | None = None):
+    def __init__(
+        self, store: Path, client: MlflowClient | None = None, run_id: str | None = None, experiment_id: str | None = None
+    ):
         self._store = store
         self._client = client
         self.run_id = run_id
+        self.experiment_id = experiment_id
         self._metrics: list[Metric] = []
+        self._model_id: str | None = None
+        self._dataset: tuple[str, str] | None = None  # (name, digest) of the training data, linked to metrics
 
     @property
     def active(self) -> bool:
@@ -230,9 +299,18 @@ class JobRun:
             self._call("log_batch", params=flat[i : i + 100])
 
     def log_metrics(self, metrics: dict[str, float], step: int = 0) -> None:
-        """Queue numeric metrics at ``step``; they are written in batches, and at the latest on exit."""
+        """Queue numeric metrics at ``step``; they are written in batches, and at the latest on exit.
+
+        Between :meth:`start_model` and :meth:`finish_model` they are linked to that logged model (and to the
+        last ``training`` dataset logged).
+        """
         ts = int(time.time() * 1000)
-        self._metrics.extend(Metric(k, float(v), ts, step) for k, v in metrics.items() if v is not None)
+        name, digest = self._dataset or (None, None)
+        self._metrics.extend(
+            Metric(k, float(v), ts, step, model_id=self._model_id, dataset_name=name, dataset_digest=digest)
+            for k, v in metrics.items()
+            if v is not None
+        )
         if len(self._metrics) >= _MAX_BATCH:
             self.flush()
 
@@ -246,19 +324,82 @@ class JobRun:
         """Copy a file (a figure, a report) into the run's artifacts."""
         self._call("log_artifact", str(path), artifact_path)
 
-    def close(self, status: str) -> None:
-        """Flush the metrics and end the run with ``status`` (``FINISHED``, ``FAILED``)."""
+    def log_dataset(self, df, path: str | Path, context: str) -> None:
+        """Record a table this job read as an MLflow dataset input with ``context`` (``training``, ``evaluation``).
+
+        Only metadata is stored: the file's name and URI, a digest of the content, the schema and the row
+        count, never a copy of the table.
+        """
+        if self._client is None:
+            return
+        try:
+            import mlflow.data
+
+            ds = mlflow.data.from_pandas(df, source=Path(path).resolve().as_uri(), name=Path(path).name)
+            entity = DatasetInput(ds._to_mlflow_entity(), tags=[InputTag("mlflow.data.context", context)])
+        except Exception as exc:  # noqa: BLE001 — tracking never fails a job
+            _warn("describing a dataset", exc)
+            return
+        self._call("log_inputs", datasets=[entity])
+        if context == "training":
+            self._dataset = (ds.name, ds.digest)
+
+    def start_model(self, name: str, params: dict | None = None) -> None:
+        """Create the MLflow logged model ``name`` of this run; metrics logged until :meth:`finish_model` link to it."""
+        if self._client is None:
+            return
+        try:
+            with _locked(self._store):
+                model = self._client.create_logged_model(
+                    self.experiment_id,
+                    name=name,
+                    source_run_id=self.run_id,
+                    params={k: v[:6000] for k, v in _flatten(params or {}).items()},
+                    model_type="pytorch-checkpoint",
+                )
+            self._model_id = model.model_id
+        except Exception as exc:  # noqa: BLE001
+            _warn("create_logged_model", exc)
+
+    def finish_model(self, checkpoint: str | Path, step: int) -> None:
+        """Upload ``checkpoint`` as the logged model's artifact, mark it READY and record it as this run's output
+        at ``step``; also copy it under the run's ``models/`` artifacts."""
         self.flush()
+        model_id, self._model_id = self._model_id, None
+        self.log_artifact(checkpoint, "models")
+        if self._client is None or model_id is None:
+            return
+        try:
+            with tempfile.TemporaryDirectory() as tmp:
+                shutil.copy(checkpoint, tmp)
+                with _locked(self._store):
+                    self._client.log_model_artifacts(model_id, tmp)
+            with _locked(self._store):
+                self._client.finalize_logged_model(model_id, "READY")
+                self._client.log_outputs(self.run_id, [LoggedModelOutput(model_id, step)])
+        except Exception as exc:  # noqa: BLE001
+            _warn("logging the model", exc)
+
+    def close(self, status: str) -> None:
+        """Flush the metrics and end the run with ``status`` (``FINISHED``, ``FAILED``, ``KILLED``)."""
+        self.flush()
+        if self._model_id is not None and self._client is not None:  # a model whose training never finished
+            try:
+                with _locked(self._store):
+                    self._client.finalize_logged_model(self._model_id, "FAILED")
+            except Exception as exc:  # noqa: BLE001
+                _warn("finalize_logged_model", exc)
+            self._model_id = None
         self._call("set_terminated", status)
 
 
 def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
     """A child run under the current invocation, or an untracked :class:`JobRun`."""
-    if not (store / INVOCATION_FILE).exists() or not (store / DB_NAME).exists():
+    inv = read_json(store / INVOCATION_FILE) if (store / INVOCATION_FILE).exists() else None
+    if inv is None or (inv["tracking_uri"] == tracking_uri(store) and not (store / DB_NAME).exists()):
         print(f"amorgs.tracking: no MLflow invocation under {store}; {rule} runs untracked", file=sys.stderr)
         return JobRun(store)
     try:
-        inv = read_json(store / INVOCATION_FILE)
         client = MlflowClient(inv["tracking_uri"])
         tags = {
             "mlflow.parentRunId": inv["parent_run_id"],
@@ -275,7 +416,7 @@ def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
         name = " ".join([rule, *(f"{k}={v}" for k, v in wildcards.items())])
         with _locked(store):
             run = client.create_run(inv["experiment_id"], run_name=name, tags=tags)
-        return JobRun(store, client, run.info.run_id)
+        return JobRun(store, client, run.info.run_id, inv["experiment_id"])
     except Exception as exc:  # noqa: BLE001 — tracking never fails a job
         _warn("opening the job run", exc)
         return JobRun(store)
@@ -286,16 +427,46 @@ def job_run(rule: str, wildcards: dict[str, str], store_dir: str | Path = STORE_
     """The child run of one job under the current invocation's parent run.
 
     Untracked (every :class:`JobRun` method a no-op) when there is no ``invocation.json`` (tracking disabled)
-    or no database (the store was removed), or when MLflow fails.  The run ends FINISHED, or FAILED if the
-    job raises.
+    or no database (the store was removed), or when MLflow fails.  The run ends FINISHED; KILLED if the job is
+    interrupted (SIGINT, or SIGTERM, which raises :class:`Killed` here; the process exits 128 + signal); FAILED
+    if it raises anything else.
     """
     job = _open_job_run(rule, wildcards, Path(store_dir))
+    previous = _catch_sigterm()
     try:
         yield job
+    except (KeyboardInterrupt, Killed):
+        job.close("KILLED")
+        raise
     except BaseException:
         job.close("FAILED")
         raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     job.close("FINISHED")
+
+
+class Killed(SystemExit):
+    """Raised in a tracked job by SIGTERM, so that its run can be closed; exits with status 128 + signal."""
+
+    def __init__(self, signum: int):
+        super().__init__(128 + signum)
+        self.signum = signum
+
+
+def _raise_killed(signum: int, frame: object) -> None:
+    raise Killed(signum)
+
+
+def _catch_sigterm():
+    """Turn SIGTERM into :class:`Killed` (main thread only); return the previous handler, or ``None``."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    try:
+        return signal.signal(signal.SIGTERM, _raise_killed)
+    except ValueError:
+        return None
 
 
 # ------------------------------------------------------------------------------------------- queries
@@ -307,10 +478,12 @@ def tracked_jobs(store_dir: str | Path = STORE_DIR) -> dict:
         {"parent_status": status of the current parent run,
          "jobs": [{"rule", "wildcards", "status", "metrics", "artifacts"}, ...]}   # every job run, any invocation
 
-    Raises ``FileNotFoundError`` if there is no invocation.
+    Raises ``FileNotFoundError`` if there is no invocation or the local database is gone.
     """
     store = Path(store_dir)
     inv = read_json(store / INVOCATION_FILE)
+    if inv["tracking_uri"] == tracking_uri(store) and not (store / DB_NAME).exists():
+        raise FileNotFoundError(store / DB_NAME)
     client = MlflowClient(inv["tracking_uri"])
     with _locked(store):
         parent = client.get_run(inv["parent_run_id"])

@@ -1,7 +1,7 @@
 """The real workflow: lint, dry runs, config errors, the smoke run with MLflow, and an interrupted run.
 
-Each test copies the Snakefile, workflow/, config/ and the solution library (data/library) into a temporary
-directory and runs the real ``snakemake`` there, so the repository's own results/ are never touched.
+Each test copies workflow/ (with the Snakefile and the default workflow profile), config/ and the solution
+library (data/library) into a temporary directory and runs the real ``snakemake`` there, so the repository's own results/ are never touched.
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ def workdir(tmp_path: Path, config: dict | None = None) -> Path:
     """A copy of the workflow in ``tmp_path/wf``; ``config`` (if given) is written to config/test.yaml."""
     wd = tmp_path / "wf"
     wd.mkdir(parents=True)
-    shutil.copy(ROOT / "Snakefile", wd)
     for d in ("workflow", "config", "data/library"):
         shutil.copytree(ROOT / d, wd / d)
     if config is not None:
@@ -103,7 +102,7 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
     from amorgs.config import load_config
 
     wd = workdir(tmp_path)
-    res = snakemake(wd, "--profile", "workflow/profiles/default", "--configfile", "config/smoke.yaml", timeout=900)
+    res = snakemake(wd, "--configfile", "config/smoke.yaml", timeout=900)  # the workflow profile applies itself
     assert res.returncode == 0, res.stdout[-5000:] + res.stderr[-5000:]
 
     check = subprocess.run(
@@ -194,7 +193,7 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
     # Losing the MLflow store never breaks a rebuild: it is recreated and the outputs come back.
     shutil.rmtree(wd / "results" / "mlflow")
     (wd / "results" / "figures" / "fig02_foxholes.png").unlink()
-    res = snakemake(wd, "--cores", "2", "--configfile", "config/smoke.yaml")
+    res = snakemake(wd, "--configfile", "config/smoke.yaml")
     assert res.returncode == 0, res.stderr[-3000:]
     assert (wd / "results" / "figures" / "fig02_foxholes.png").stat().st_size > 0
     res = snakemake(wd, "-n", "--configfile", "config/smoke.yaml")
@@ -218,7 +217,7 @@ def test_killed_run_resumes_without_losing_or_duplicating_rows(tmp_path):
     cfg = _interrupt_config()
     untracked = {**cfg, "mlflow": {**cfg["mlflow"], "enabled": False}}  # tracking never changes a table
     # the data stages, with the default profile (2 cores, --rerun-incomplete)
-    run = ["results/dejong/high_quality.parquet", "--profile", "workflow/profiles/default", "--configfile", "config/test.yaml"]
+    run = ["results/dejong/high_quality.parquet", "--configfile", "config/test.yaml"]
     ref = workdir(tmp_path / "ref", untracked)
     res = snakemake(ref, *run)
     assert res.returncode == 0, res.stderr[-3000:]

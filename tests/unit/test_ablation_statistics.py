@@ -22,6 +22,7 @@ def cell(sampler, times, hq_flags, tof=20.0, alpha=0.15):
             "tau_i": np.ones(n),
             "tau_f": np.ones(n),
             "cpu_s": np.array(times, float),
+            "iterations": 100 * np.array(times, float),
         }
     )
 
@@ -79,10 +80,122 @@ def test_summarize_report(ablation):
     truth = pd.DataFrame({"alpha": 0.15, "tau_s": rng.normal(18, 0.05, 30), "tau_i": np.ones(30), "tau_f": np.ones(30),
                           "m_f": np.full(30, 430.0), "converged": True})
     ablation = ablation.assign(guess_tau_s=5.0, guess_tau_i=1.0, guess_tau_f=1.0, guess_m_f=400.0)
-    metrics, tables, figures = summarize(ablation, truth, 415.0, n_boot=100)
+    metrics, tables, figures = summarize(ablation, truth, 415.0, n_boot=100, beta_sweep=(425.0, 435.0),
+                                         iteration_caps=(200, 1000), max_iter=1000)
     assert metrics["percent_hq_a0.150_amorgs"] == 75.0
     assert metrics["hyperplanes_ground_truth_a0.150"] == 1.0
     assert metrics["hyperplanes_reached_a0.150_amorgs"] == 1.0
-    assert set(figures) == {"fig21_solve_time_histograms", "fig22_capped_convergence", "fig23_amorgs_diversity"}
+    assert set(figures) == {"fig21_solve_time_histograms", "fig22_capped_convergence", "fig23_amorgs_diversity",
+                            "fig22_iteration_capped", "ablation_speedups", "ablation_beta_sweep", "ablation_anytime"}
+    # amorgs 3 HQ in 1600 iterations, uniform 1 in 3800: speed-up (3800/1) / (1600/3)
+    assert metrics["speedup_iterations_a0.150_amorgs"] == pytest.approx(3800 / (1600 / 3))
+    assert metrics["rate_percent_a0.150_amorgs"] == 75.0 and "rate_percent_a0.150_amorgs_beta435" in metrics
+    assert metrics["itcap_percent_a0.150_cap200_amorgs"] == 50.0  # the 100- and 200-iteration solves
+    assert set(tables["beta_sweep"]["beta_kg"]) == {415.0, 425.0, 435.0}
+    assert metrics["best_m_f_a0.150_amorgs"] == 430.0
     md = table6_markdown(tables["table6"])
     assert "| | Uniform | AmorGS |" in md and "| Percentage (%) | 25.0 | 75.0 |" in md
+
+
+# ----------------------------------------------------------------- issue 11: statistics at modest n
+
+
+def arm(sampler, iterations, hq_flags, m_f=None, alpha=0.15, tau_s=None, cpu_per_iteration=0.01):
+    n = len(iterations)
+    hq = np.array(hq_flags, bool)
+    return pd.DataFrame({
+        "alpha": alpha, "sampler": sampler, "start": np.arange(n), "converged": hq,
+        "m_f": np.where(hq, 430.0, 300.0) if m_f is None else np.asarray(m_f, float),
+        "tau_s": np.full(n, 18.0) if tau_s is None else np.asarray(tau_s, float),
+        "tau_i": np.ones(n), "tau_f": np.ones(n),
+        "iterations": np.asarray(iterations, float), "cpu_s": cpu_per_iteration * np.asarray(iterations, float),
+    })
+
+
+@pytest.fixture
+def three_arms():
+    # uniform: 2 HQ of 6, 1000 iterations total; nearest: 6 of 6 in 30 each; amorgs: 3 of 6, 600 in total
+    return pd.concat([
+        arm("uniform", [100, 300, 150, 150, 150, 150], [1, 1, 0, 0, 0, 0]),
+        arm("nearest_alpha", [30] * 6, [1] * 6),
+        arm("amorgs", [50, 50, 200, 100, 100, 100], [1, 1, 1, 0, 0, 0]),
+    ], ignore_index=True)
+
+
+def test_fisher_and_rates(three_arms):
+    from scipy.stats import fisher_exact
+
+    from amorgs.ablation.statistics import fisher_greater, rates
+
+    assert fisher_greater(6, 6, 2, 6) == pytest.approx(fisher_exact([[6, 0], [2, 4]], alternative="greater")[1])
+    assert fisher_greater(2, 6, 6, 6) == pytest.approx(1.0)  # "lower" is never evidence of "higher"
+    r = rates(three_arms, [415.0]).set_index("sampler")
+    assert r.loc["nearest_alpha", "percent"] == 100.0 and r.loc["nearest_alpha", "k_high_quality"] == 6
+    assert r.loc["nearest_alpha", "p_gt_uniform"] == pytest.approx(fisher_greater(6, 6, 2, 6))
+    assert r.loc["amorgs", "p_gt_nearest_alpha"] == pytest.approx(1.0)
+    assert math.isnan(r.loc["uniform", "p_gt_uniform"])
+    assert r.loc["amorgs", "ci95_low"] < 50.0 < r.loc["amorgs", "ci95_high"]
+
+
+def test_beta_sweep_is_monotone_in_beta():
+    from amorgs.ablation.statistics import rates
+
+    df = arm("amorgs", [10] * 4, [1, 1, 1, 1], m_f=[416.0, 426.0, 431.0, 440.0])
+    sweep = rates(df, [415, 425, 430, 435]).set_index("beta_kg")
+    assert sweep["k_high_quality"].tolist() == [4, 3, 2, 1]
+
+
+def test_expected_running_time_and_speedups(three_arms):
+    from amorgs.ablation.statistics import expected_running_time
+
+    ert = expected_running_time(three_arms, 415.0, n_boot=500, seed=1)
+    it = ert[ert["unit"] == "iterations"].set_index("sampler")
+    assert it.loc["uniform", "aRT"] == pytest.approx(1000 / 2)
+    assert it.loc["nearest_alpha", "aRT"] == pytest.approx(180 / 6)
+    assert it.loc["amorgs", "aRT"] == pytest.approx(600 / 3)
+    assert it.loc["nearest_alpha", "speedup"] == pytest.approx(500 / 30)
+    assert it.loc["uniform", "speedup"] == pytest.approx(1.0)
+    lo, hi = it.loc["amorgs", ["speedup_ci95_low", "speedup_ci95_high"]]
+    assert lo <= 2.5 <= hi and lo < hi
+    cpu = ert[ert["unit"] == "cpu_s"].set_index("sampler")
+    assert cpu.loc["amorgs", "aRT"] == pytest.approx(600 * 0.01 / 3)  # 0.01 s per iteration
+    again = expected_running_time(three_arms, 415.0, n_boot=500, seed=1)
+    pd.testing.assert_frame_equal(ert, again)  # seeded bootstrap
+
+
+def test_expected_running_time_when_nothing_found():
+    from amorgs.ablation.statistics import expected_running_time
+
+    df = pd.concat([arm("uniform", [100, 100], [0, 0]), arm("amorgs", [10, 10], [1, 0])])
+    it = expected_running_time(df, 415.0, n_boot=100).query("unit == 'iterations'").set_index("sampler")
+    assert it.loc["uniform", "aRT"] == math.inf and it.loc["amorgs", "speedup"] == math.inf
+
+
+def test_iteration_capped_is_a_real_cap(three_arms):
+    from amorgs.ablation.statistics import iteration_capped
+
+    t = iteration_capped(three_arms, 415.0, caps=[100, 1000], max_iter=1000)
+    c100 = t[t["cap_iterations"] == 100].set_index("sampler")
+    # cap 100: uniform keeps the 100-iteration HQ solve only (the 300 one is cut), spends 100 × 6
+    assert c100.loc["uniform", "k_within_cap"] == 1
+    assert c100.loc["uniform", "iterations_spent"] == 600
+    # amorgs: 50, 50 in; the 200 one is charged 100 and fails; spends 50+50+100+100+100+100
+    assert c100.loc["amorgs", "k_within_cap"] == 2 and c100.loc["amorgs", "iterations_spent"] == 500
+    assert c100.loc["amorgs", "percent_ratio"] == pytest.approx(2.0)
+    assert c100.loc["amorgs", "throughput_ratio"] == pytest.approx((2 / 500) / (1 / 600))
+    c1000 = t[t["cap_iterations"] == 1000].set_index("sampler")
+    assert c1000.loc["uniform", "k_within_cap"] == 2
+    with pytest.raises(ValueError, match="max_iter"):
+        iteration_capped(three_arms, 415.0, caps=[2000], max_iter=1000)
+
+
+def test_anytime_curves():
+    from amorgs.ablation.statistics import anytime_curves
+
+    # HQ at starts 0, 2, 3; start 3 repeats start 0's times (not a new optimum), start 2 is 4 TU away (new)
+    df = arm("amorgs", [10, 20, 30, 40], [1, 0, 1, 1], m_f=[420.0, 300.0, 433.0, 425.0], tau_s=[18, 18, 22, 18])
+    c = anytime_curves(df, 415.0, eta=0.02)
+    assert c["iterations_cumulative"].tolist() == [10, 30, 60, 100]
+    assert c["best_m_f"].tolist() == [420.0, 420.0, 433.0, 433.0]
+    assert c["distinct_optima"].tolist() == [1, 1, 2, 2]
+    assert np.all(np.diff(c["cpu_s_cumulative"]) > 0)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 from cr3bp_synthetic import synthetic_hq
 
@@ -16,9 +17,14 @@ from amorgs.models.samplers import (
     AmorGSSampler,
     CVAETimeMassUniformControl,
     UniformSampler,
+    GMMLSTMSampler,
+    NearestAlphaPerturbedSampler,
+    NearestAlphaSampler,
     UniformTimeMassLSTMControl,
     VanillaCVAESampler,
     build_sampler,
+    make_valid,
+    nearest_training_alpha,
     torch_generator,
 )
 from amorgs.models.training import TrainConfig
@@ -26,6 +32,12 @@ from amorgs.problems import get_problem
 
 BRIEF = TrainConfig(epochs=5, batch_size=1024, lr=5e-3, seed=0, device="cpu")
 LEARNED = tuple(n for n in SAMPLER_NAMES if n != "uniform")
+TRAIN_ALPHAS = (0.1, 0.4, 0.7, 1.0)  # the α of synthetic_hq
+
+
+@pytest.fixture(scope="module")
+def hq():
+    return synthetic_hq(48)
 
 
 
@@ -35,8 +47,7 @@ def problem():
 
 
 @pytest.fixture(scope="module")
-def models(one_torch_thread):
-    hq = synthetic_hq(48)
+def models(one_torch_thread, hq):
     return {
         "cvae_gmm": train_time_mass_cvae(hq, "small", BRIEF),
         "vanilla_cvae": train_vanilla_cvae(hq, "small", BRIEF),
@@ -53,8 +64,12 @@ def models_dir(models, tmp_path_factory):
     return d
 
 
-def in_memory(name: str, problem, models):
+def in_memory(name: str, problem, models, hq=None):
+    hq = synthetic_hq(48) if hq is None else hq
     return {
+        "nearest_alpha": lambda: NearestAlphaSampler(problem, hq, TRAIN_ALPHAS),
+        "nearest_alpha_perturbed": lambda: NearestAlphaPerturbedSampler(problem, hq, TRAIN_ALPHAS, 0.02),
+        "gmm_lstm": lambda: GMMLSTMSampler(problem, hq, TRAIN_ALPHAS, models["lstm"], 3),
         "uniform": lambda: UniformSampler(problem),
         "cvae_uniform_control": lambda: CVAETimeMassUniformControl(problem, models["cvae_gmm"]),
         "uniform_lstm_control": lambda: UniformTimeMassLSTMControl(problem, models["lstm"]),
@@ -107,8 +122,9 @@ def test_which_parts_each_sampler_draws_from_the_model(problem, models):
 
 
 @pytest.mark.parametrize("name", SAMPLER_NAMES)
-def test_build_sampler_round_trip_through_checkpoints(name, problem, models, models_dir):
-    loaded = build_sampler(name, problem, models_dir)
+def test_build_sampler_round_trip_through_checkpoints(name, problem, models, models_dir, hq):
+    loaded = build_sampler(name, problem, models_dir, high_quality=hq, train_alphas=TRAIN_ALPHAS,
+                           perturbation_scale=0.02, gmm_components=3)
     assert loaded.name == name
     expected = in_memory(name, problem, models).sample(0.85, 12, np.random.default_rng(11))
     np.testing.assert_array_equal(loaded.sample(0.85, 12, np.random.default_rng(11)), expected)
@@ -124,3 +140,58 @@ def test_build_sampler_errors(problem, models, models_dir, tmp_path):
         build_sampler("cvae_uniform_control", problem, tmp_path)
     with pytest.raises(ValueError, match="alpha"):
         in_memory("amorgs", problem, models).sample(1.5, 4, np.random.default_rng(0))
+
+
+# ------------------------------------------------------------------------------ the reuse baselines
+
+
+def test_nearest_alpha_reuses_training_rows_unchanged_and_never_the_test_alpha(problem, hq):
+    names = list(problem.variable_names)
+    # add rows AT the query α = 0.15 (a "test" α): they must never be drawn
+    leak = hq[np.isclose(hq["alpha"], 0.1)].assign(alpha=0.15, m_f=999.0)
+    table = pd.concat([hq, leak], ignore_index=True)
+    sampler = NearestAlphaSampler(problem, table, (*TRAIN_ALPHAS, 0.15))
+    assert nearest_training_alpha(sampler.by_alpha, 0.15) == 0.1
+    plain = NearestAlphaSampler(problem, hq, TRAIN_ALPHAS)
+    assert nearest_training_alpha(plain.by_alpha, 0.25) == 0.1  # tie 0.1 / 0.4 → the smaller α
+    assert nearest_training_alpha(plain.by_alpha, 0.9) == pytest.approx(1.0)
+    x = sampler.sample(0.15, 200, np.random.default_rng(0))
+    source = make_valid(hq.loc[np.isclose(hq["alpha"], 0.1), names].to_numpy(), problem)
+    # every draw is one of α = 0.1's solutions, exactly; with replacement (200 draws from fewer rows)
+    match = np.all(np.isclose(x[:, None, :], source[None, :, :], atol=1e-12), axis=2)
+    assert match.any(axis=1).all() and len(source) < 200
+    assert not np.any(x[:, 3] == 999.0)
+    # restricted to training α: rows at α not in the training list are ignored
+    only = NearestAlphaSampler(problem, table, (0.7,))
+    assert list(only.by_alpha) == [0.7]
+
+
+def test_nearest_alpha_perturbed_noise_scale(problem, hq):
+    base = NearestAlphaSampler(problem, hq, TRAIN_ALPHAS).sample(0.85, 400, np.random.default_rng(4))
+    zero = NearestAlphaPerturbedSampler(problem, hq, TRAIN_ALPHAS, 0.0).sample(0.85, 400, np.random.default_rng(4))
+    np.testing.assert_allclose(zero, base, atol=1e-9)
+    noisy = NearestAlphaPerturbedSampler(problem, hq, TRAIN_ALPHAS, 0.02).sample(0.85, 400, np.random.default_rng(4))
+    z = (noisy[:, :4] - base[:, :4]) / (problem.upper[:4] - problem.lower[:4])  # τ, m_f: far from the bounds
+    assert np.std(z) == pytest.approx(0.02, rel=0.1)
+    with pytest.raises(ValueError, match="scale"):
+        NearestAlphaPerturbedSampler(problem, hq, TRAIN_ALPHAS, -1.0)
+
+
+def test_gmm_lstm_blends_the_bracketing_alphas(problem, hq, models):
+    sampler = GMMLSTMSampler(problem, hq, TRAIN_ALPHAS, models["lstm"], 2)
+    (a, wa), (b, wb) = sampler.bracket(0.55)
+    assert (a, b) == (0.4, 0.7) and wa == pytest.approx(0.5) and wb == pytest.approx(0.5)
+    assert sampler.bracket(0.05)[0] == (0.1, 1.0)  # outside the training range: the nearest α
+    # synthetic τ_s = 6 + 20 α: at α = 0.4 + 0.3 w_b the blend has mean 6 + 20 (0.4 wa + 0.7 wb)
+    tm = sampler.time_mass(0.625, 4000, np.random.default_rng(1))
+    assert tm[:, 0].mean() == pytest.approx(6 + 20 * (0.4 * 0.25 + 0.7 * 0.75), abs=0.3)
+    assert tm[:, 3].mean() == pytest.approx(415 + 20 * (0.4 * 0.25 + 0.7 * 0.75), abs=1.0)
+
+
+def test_baselines_need_their_inputs(problem, models_dir, hq):
+    with pytest.raises(ValueError, match="high-quality"):
+        build_sampler("nearest_alpha", problem, models_dir)
+    with pytest.raises(ValueError, match="models directory"):
+        build_sampler("gmm_lstm", problem, None, high_quality=hq, train_alphas=TRAIN_ALPHAS)
+    with pytest.raises(ValueError, match="no high-quality rows"):
+        NearestAlphaSampler(problem, hq, (0.33,))

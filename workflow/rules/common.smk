@@ -9,7 +9,7 @@ from snakemake_interface_executor_plugins.settings import DeploymentMethod
 
 from amorgs import layout
 from amorgs.config import load_workflow_config
-from amorgs.data.library import library_shards as _library_shards
+from amorgs.data.library import library_files as _library_files
 from amorgs.data.seeds import cell_seed, shard_seed
 
 
@@ -55,11 +55,18 @@ def seed_of_shard(wildcards):
 
 
 def library_shards(wildcards):
-    """The committed library shards of this (problem, α), if the problem's library is enabled."""
+    """The committed library files of this (problem, α), if the problem's library is enabled."""
     library = problem_cfg(wildcards).library
     if not library.enabled:
         return []
-    return [str(p) for p in _library_shards(library.path, wildcards.problem, wildcards.alpha)]
+    return [str(p) for p in _library_files(library.path, wildcards.problem, wildcards.alpha)]
+
+
+def library_arguments(wildcards):
+    """The merge's library options: the library root and the optional fixed slice."""
+    library = problem_cfg(wildcards).library
+    slice_ = "" if library.max_rows_per_alpha is None else f" --library-max-rows {library.max_rows_per_alpha}"
+    return f"--library-dir {library.path}{slice_}"
 
 
 def seed_of_cell(wildcards):

@@ -1,5 +1,6 @@
 # Stage 1: multi-start local solves, one job per (problem, α, shard), then one merged table per (problem, α):
-# the fresh shards plus, with problems.<name>.library.enabled, the committed library shards of that α.
+# the fresh shards plus, with problems.<name>.library.enabled, the committed library files of that α
+# (checked against the library manifest; optionally a fixed slice of their first rows).
 
 
 rule generate:
@@ -32,6 +33,8 @@ rule merge:
         layout.ALPHA_TABLE,
     log:
         "logs/merge/{problem}/alpha={alpha}.log",
+    params:
+        library=library_arguments,
     threads: CFG.resources.merge.threads
     resources:
         mem_mb=CFG.resources.merge.mem_mb,
@@ -40,4 +43,4 @@ rule merge:
         "../envs/amorgs.yaml"
     shell:
         "python -m amorgs merge --problem {wildcards.problem} --alpha {wildcards.alpha} "
-        "--inputs {input.fresh} --library {input.library} --output {output} > {log} 2>&1"
+        "--inputs {input.fresh} --library {input.library} {params.library} --output {output} > {log} 2>&1"

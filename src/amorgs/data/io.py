@@ -3,7 +3,9 @@
 Every writer goes through :func:`atomic_path`: the content is written to a hidden temporary file in the
 destination's own directory (same filesystem, so the final ``os.replace`` is atomic), flushed to disk, and
 only then renamed over the destination.  A process killed mid-write leaves at most a stray ``.*.tmp`` file,
-never a truncated table.
+never a truncated table.  The file gets the permissions a plain ``open(path, "w")`` would give it: those of the
+file it replaces, or ``0o666`` less the process umask for a new file (``mkstemp`` alone would make it ``0o600``,
+unreadable to the group).
 """
 
 from __future__ import annotations
@@ -31,11 +33,23 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     tmp = Path(tmp_name)
     try:
         yield tmp
+        os.chmod(tmp, _mode_of_new_file(dest))
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, dest)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def _mode_of_new_file(dest: Path) -> int:
+    """The permission bits ``open(dest, "w")`` would leave: an existing file's own, else 0o666 less the umask."""
+    try:
+        return dest.stat().st_mode & 0o7777
+    except FileNotFoundError:
+        pass
+    mask = os.umask(0o022)  # the only portable way to read the umask is to set it; restore at once
+    os.umask(mask)
+    return 0o666 & ~mask
 
 
 def write_parquet(df: pd.DataFrame, path: str | Path) -> None:

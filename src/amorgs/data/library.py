@@ -1,41 +1,146 @@
-"""The versioned solution library: generated shards kept in the repository so that work accumulates.
+"""The versioned solution library: solves kept in the repository so that work accumulates across runs.
 
 Layout (committed)::
 
-    data/library/{problem}/alpha={label}/shard-{k}.parquet     exactly the workflow's generate outputs
-    data/library/{problem}/provenance.json                     how they were made (see export_library)
+    data/library/{problem}/alpha={label}/shards-{first:05d}-{last:05d}.parquet   one file per α per export
+    data/library/{problem}/provenance.json                                        the manifest (format 2)
 
-A workflow run whose config enables the library merges these shards with its own freshly generated ones;
-the merged table's ``source`` column says ``library`` or ``fresh`` for every row.  The library is produced
-by this workflow (``config/library.yaml``: generate/merge with the library's own base seed, so its seeds
-never coincide with a default run's) and frozen with ``amorgs library-export``.
+Every file consolidates the generate shards of one α that one export found (a ``shard`` column keeps
+them apart); its manifest entry records the shard indices, row count, converged count, SHA-256, size,
+solver-option hashes, CPU-hours, export time and git commit.  The manifest is the source of truth: a
+library read (:func:`read_library_file`) refuses a file that is not listed, whose hash or row count
+differs, or that is not a readable Parquet table — always naming the file.
+
+Only the library config (``config/library.yaml``: its own base seed, generate/merge only) feeds the library:
+:func:`export_library` checks every shard against it (seed derived from (seed, problem, α, shard), one
+row per configured start, one solver-option hash) and refuses anything else, naming the file.  Shards are
+immutable (same α and index ⇒ same seed ⇒ same rows), so an export adds only indices not yet listed.
+Solutions are stored inside the problem's box: values outside it by at most :data:`CLIP_TOLERANCE` (the
+NLP's own bound tolerance) are clipped on export; anything farther is refused.
+
+A workflow run whose config enables the library merges these files with its own fresh shards; the merged
+table's ``source`` column says ``library`` or ``fresh``.  ``library.max_rows_per_alpha`` takes a fixed
+slice (the first rows in (shard, start) order) so that small configs stay small as the library grows.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import json
-import shutil
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
-from amorgs.data.io import atomic_path, write_json
+from amorgs.data.io import write_json, write_parquet
+from amorgs.data.seeds import shard_seed
+from amorgs.data.tables import merge_shards, validate_solutions
+from amorgs.errors import InputError
 
 SOURCE_LIBRARY = "library"
 SOURCE_FRESH = "fresh"
+FORMAT = 2
+MANIFEST = "provenance.json"
+#: Largest distance (in the variable's own units) outside the box that export clips instead of refusing.
+CLIP_TOLERANCE = 1e-6
 
 
-def library_shards(library_dir: str | Path, problem: str, alpha_label: str) -> list[Path]:
-    """The committed shard files of one (problem, α label), sorted; empty if there are none."""
-    folder = Path(library_dir) / problem / f"alpha={alpha_label}"
-    return sorted(folder.glob("shard-*.parquet"))
+# ------------------------------------------------------------------------------------------- reading
+
+
+def sha256_file(path: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def read_table(path: str | Path) -> pd.DataFrame:
+    """Read one Parquet table; an unreadable (truncated, corrupt, missing) file raises :class:`InputError`
+    naming it, instead of an Arrow traceback."""
+    try:
+        return pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises several unrelated types for damaged files
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{path}: not a readable Parquet table ({reason})") from None
+
+
+def read_manifest(library_dir: str | Path, problem: str) -> dict | None:
+    """The library manifest of ``problem`` (``provenance.json``), or None if the problem has no library."""
+    path = Path(library_dir) / problem / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable library manifest ({exc})") from None
+    if manifest.get("format") != FORMAT:
+        raise InputError(f"{path}: library manifest format {manifest.get('format')!r}, expected {FORMAT}")
+    return manifest
+
+
+def library_files(library_dir: str | Path, problem: str, alpha_label: str) -> list[Path]:
+    """The files of one (problem, α label) as listed in the manifest, in order; empty without a library."""
+    manifest = read_manifest(library_dir, problem)
+    if manifest is None:
+        return []
+    root = Path(library_dir) / problem
+    return [root / e["file"] for e in manifest["files"] if e["file"].startswith(f"alpha={alpha_label}/")]
+
+
+def _entry_of(path: Path, manifest: dict, root: Path) -> dict:
+    try:
+        rel = path.resolve().relative_to(root.resolve()).as_posix()
+    except ValueError:
+        raise InputError(f"{path}: not inside the library {root}") from None
+    for entry in manifest["files"]:
+        if entry["file"] == rel:
+            return entry
+    raise InputError(f"{path}: not listed in {root / MANIFEST} (a library file must be added by `amorgs library-export`)")
+
+
+def read_library_file(path: str | Path, library_dir: str | Path, problem: str) -> pd.DataFrame:
+    """Read one library file after checking it against the manifest: listed, same SHA-256, same row count."""
+    path = Path(path)
+    root = Path(library_dir) / problem
+    manifest = read_manifest(library_dir, problem)
+    if manifest is None:
+        raise InputError(f"{path}: the library {root} has no {MANIFEST}")
+    entry = _entry_of(path, manifest, root)
+    if not path.is_file():
+        raise InputError(f"{path}: listed in {root / MANIFEST} but missing")
+    digest = sha256_file(path)
+    if digest != entry["sha256"]:
+        raise InputError(
+            f"{path}: SHA-256 {digest[:12]}… differs from the manifest's {entry['sha256'][:12]}… "
+            "(the file was modified after export; restore it with git)"
+        )
+    df = read_table(path)
+    if len(df) != entry["rows"]:
+        raise InputError(f"{path}: {len(df)} rows, the manifest lists {entry['rows']}")
+    return df
+
+
+def read_library(library_dir: str | Path, problem: str, alpha_label: str, max_rows: int | None = None) -> pd.DataFrame:
+    """Every verified library row of one (problem, α label) in (shard, start) order, optionally only the first
+    ``max_rows`` of them (a fixed slice); an empty table if there are none."""
+    files = library_files(library_dir, problem, alpha_label)
+    if not files:
+        return pd.DataFrame()
+    df = merge_shards(read_library_file(p, library_dir, problem) for p in files)
+    return df.head(max_rows).reset_index(drop=True) if max_rows is not None else df
 
 
 def tag_source(df: pd.DataFrame, source: str) -> pd.DataFrame:
     """Add (or overwrite) the ``source`` column."""
     return df.assign(source=source)
+
+
+# ------------------------------------------------------------------------------------------- export
 
 
 def _git_commit() -> str:
@@ -45,50 +150,153 @@ def _git_commit() -> str:
         return "unknown"
 
 
-def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, config_file: str | Path) -> dict:
-    """Copy every finished shard under ``solutions_dir/alpha=*/`` into the library and write provenance.
+def check_library_shard(df: pd.DataFrame, path: str | Path, problem: str, base_seed: int, starts: int,
+                        alpha_values: dict[str, float]) -> None:
+    """Refuse (``InputError`` naming the file) a shard that the library config did not produce: wrong
+    problem or α, a seed other than ``shard_seed(base_seed, problem, α, shard)``, a row count other than
+    ``starts``, or mixed solver-option hashes."""
+    where = str(path)
+    if len(df) == 0:
+        raise InputError(f"{where}: empty shard")
+    try:
+        validate_solutions(df, where=where)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    label = Path(path).parent.name.removeprefix("alpha=")
+    if label not in alpha_values:
+        raise InputError(f"{where}: α label {label} is not an α of the library config")
+    alpha = alpha_values[label]
+    if set(df["problem"]) != {problem} or not np.allclose(df["alpha"], alpha, rtol=0, atol=1e-12):
+        raise InputError(f"{where}: rows are not {problem} at α = {alpha!r}")
+    shards = set(df["shard"].astype(int))
+    if len(shards) != 1:
+        raise InputError(f"{where}: rows from several shards {sorted(shards)}")
+    shard = shards.pop()
+    expected = shard_seed(base_seed, problem, alpha, shard)
+    seeds = set(df["seed"].astype(int))
+    if seeds != {expected}:
+        raise InputError(
+            f"{where}: seed {sorted(seeds)} is not the library config's seed {expected} for shard {shard} at "
+            f"α = {alpha!r}: this shard was produced by another config and cannot enter the library"
+        )
+    if len(df) != starts:
+        raise InputError(f"{where}: {len(df)} rows, the library config makes {starts} per shard")
+    if df["options_hash"].nunique() != 1:
+        raise InputError(f"{where}: mixed solver-option hashes {sorted(df['options_hash'].unique())}")
 
-    Shards already in the library are kept (a shard is immutable: same path ⇒ same seed ⇒ same rows).
-    Provenance: config file and its text, git commit, creation time, solver option hashes, CPU-hours, and
-    rows / converged per α over the whole library.
+
+def clip_to_bounds(df: pd.DataFrame, names, lower, upper, where: str, tol: float = CLIP_TOLERANCE) -> pd.DataFrame:
+    """Clip the solution columns ``names`` into [lower, upper]; a value farther out than ``tol`` raises
+    ``InputError`` naming the file, column and distance.  NaN (no solution) stays NaN."""
+    out = df.copy()
+    for name, lo, hi in zip(names, lower, upper):
+        col = out[name].to_numpy(dtype=float)
+        excess = np.nanmax(np.maximum(lo - col, col - hi), initial=-np.inf) if np.isfinite(col).any() else -np.inf
+        if excess > tol:
+            raise InputError(f"{where}: column {name!r} lies {excess:.3g} outside its bounds [{lo}, {hi}]")
+        out[name] = np.where(np.isnan(col), col, np.clip(col, lo, hi))
+    return out
+
+
+def _per_alpha(entries: list[dict]) -> list[dict]:
+    table = pd.DataFrame(entries)
+    rows = []
+    for alpha, g in table.groupby("alpha"):
+        best = [e for e in g["best_objective"] if e is not None and e == e]
+        rows.append({"alpha": float(alpha), "files": int(len(g)), "shards": int(g["shards"].map(len).sum()),
+                     "rows": int(g["rows"].sum()), "converged": int(g["converged"].sum()),
+                     "best_objective": float(min(best)) if best else None})
+    return rows
+
+
+def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, config_file: str | Path) -> dict:
+    """Add every finished library-config shard under ``solutions_dir/alpha=*/`` not yet in the library.
+
+    Per α, the new shards become one consolidated file ``alpha={label}/shards-{first}-{last}.parquet``
+    (solutions clipped into the box, see :func:`clip_to_bounds`), and the manifest gains its entry.  Every
+    shard is checked first (:func:`check_library_shard`); one bad shard refuses the whole export.
+    Returns a summary: files and rows added, and the library totals.
     """
-    src = Path(solutions_dir)
-    dst = Path(library_dir) / problem
-    copied = 0
-    for shard in sorted(src.glob("alpha=*/shard-*.parquet")):
-        target = dst / shard.parent.name / shard.name
-        if not target.exists():
-            target.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_path(target) as tmp:
-                shutil.copyfile(shard, tmp)
-            copied += 1
-    frames = [pd.read_parquet(p) for p in sorted(dst.glob("alpha=*/shard-*.parquet"))]
-    if not frames:
-        raise FileNotFoundError(f"no shard tables under {src}/alpha=*/ to export")
-    df = pd.concat(frames, ignore_index=True)
-    per_alpha = [
-        {"alpha": float(a), "rows": int(len(g)), "converged": int(g["converged"].sum()),
-         "best_objective": float(g.loc[g["converged"], "objective"].min()) if g["converged"].any() else None}
-        for a, g in df.groupby("alpha")
-    ]
-    provenance = {
+    from amorgs.config import load_config
+    from amorgs.problems import get_problem
+
+    cfg = load_config(config_file)
+    section = getattr(cfg.problems, problem)
+    alpha_values = section.alpha_values()
+    prob = get_problem(problem)
+    root = Path(library_dir) / problem
+    manifest = read_manifest(library_dir, problem) or {"format": FORMAT, "problem": problem, "files": [], "exports": []}
+    held = {(e["file"].split("/")[0], k) for e in manifest["files"] for k in e["shards"]}
+
+    new: dict[str, list[tuple[int, pd.DataFrame]]] = {}
+    for path in sorted(Path(solutions_dir).glob("alpha=*/shard-*.parquet")):
+        label_dir = path.parent.name
+        shard = int(path.stem.removeprefix("shard-"))
+        if (label_dir, shard) in held:
+            continue
+        df = read_table(path)
+        check_library_shard(df, path, problem, cfg.seed, section.generate.starts_per_shard, alpha_values)
+        if int(df["shard"].iloc[0]) != shard:
+            raise InputError(f"{path}: file name says shard {shard}, rows say {int(df['shard'].iloc[0])}")
+        new.setdefault(label_dir, []).append((shard, df))
+
+    now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    commit = _git_commit()
+    added_rows = 0
+    for label_dir, parts in sorted(new.items()):
+        shards = sorted(k for k, _ in parts)
+        df = merge_shards(d for _, d in parts)
+        df = clip_to_bounds(df, prob.variable_names, prob.lower, prob.upper, where=f"{solutions_dir}/{label_dir}")
+        rel = f"{label_dir}/shards-{shards[0]:05d}-{shards[-1]:05d}.parquet"
+        write_parquet(df, root / rel)
+        conv = df[df["converged"]]
+        manifest["files"].append({
+            "file": rel,
+            "alpha": float(df["alpha"].iloc[0]),
+            "shards": shards,
+            "rows": int(len(df)),
+            "converged": int(len(conv)),
+            "best_objective": float(conv["objective"].min()) if len(conv) else None,
+            "sha256": sha256_file(root / rel),
+            "bytes": (root / rel).stat().st_size,
+            "options_hashes": sorted(df["options_hash"].astype(str).unique().tolist()),
+            "cpu_hours": float(df["cpu_s"].fillna(0).sum() / 3600),
+            "exported": now,
+            "git_commit": commit,
+        })
+        added_rows += len(df)
+    manifest["files"].sort(key=lambda e: e["file"])
+    if new:
+        manifest["exports"].append({"created": now, "git_commit": commit, "files_added": len(new), "rows_added": added_rows})
+    files = manifest["files"]
+    if not files:
+        raise InputError(f"no library-config shard tables under {solutions_dir}/alpha=*/ to export")
+    total_bytes = sum(e["bytes"] for e in files)
+    rows = sum(e["rows"] for e in files)
+    manifest.update({
         "problem": problem,
-        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "git_commit": _git_commit(),
         "config_file": str(config_file),
         "config": Path(config_file).read_text(),
-        "options_hashes": sorted(df["options_hash"].astype(str).unique().tolist()),
-        "shards": len(frames),
-        "rows": int(len(df)),
-        "converged": int(df["converged"].sum()),
-        "cpu_hours": float(df["cpu_s"].fillna(0).sum() / 3600),
-        "per_alpha": per_alpha,
-    }
-    write_json(provenance, dst / "provenance.json")
-    return {"copied": copied, **{k: provenance[k] for k in ("shards", "rows", "converged", "cpu_hours")}}
+        "seed": cfg.seed,
+        "starts_per_shard": section.generate.starts_per_shard,
+        "totals": {
+            "files": len(files),
+            "shards": sum(len(e["shards"]) for e in files),
+            "rows": rows,
+            "converged": sum(e["converged"] for e in files),
+            "cpu_hours": sum(e["cpu_hours"] for e in files),
+            "bytes": total_bytes,
+            "bytes_per_row": total_bytes / rows,
+        },
+        "per_alpha": _per_alpha(files),
+    })
+    write_json(manifest, root / MANIFEST)
+    return {"files_added": len(new), "rows_added": added_rows, **manifest["totals"]}
 
 
-def read_provenance(library_dir: str | Path, problem: str) -> dict | None:
-    """The library's provenance record, or None if the problem has no library."""
-    path = Path(library_dir) / problem / "provenance.json"
-    return json.loads(path.read_text()) if path.is_file() else None
+def held_shards(library_dir: str | Path, problem: str) -> set[tuple[str, int]]:
+    """(α label, shard index) of every shard the library holds."""
+    manifest = read_manifest(library_dir, problem)
+    if manifest is None:
+        return set()
+    return {(e["file"].split("/")[0].removeprefix("alpha="), k) for e in manifest["files"] for k in e["shards"]}

@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 from scipy.stats import gaussian_kde
 
 from amorgs.ablation.statistics import high_quality
-from amorgs.models.samplers import SAMPLER_LABELS, SAMPLER_NAMES
+from amorgs.ablation.arms import SAMPLER_LABELS, SAMPLER_NAMES
 
 
 def _samplers(df: pd.DataFrame) -> list[str]:
@@ -85,5 +85,119 @@ def fig23_amorgs_diversity(ablation: pd.DataFrame, ground_truth: pd.DataFrame, b
             ax.set_xlabel("τ_s (TU)")
         axes[i, 0].set_ylabel("TOF (TU)")
     fig.suptitle(f"Fig. 23 — {SAMPLER_LABELS.get(sampler, sampler)} samples, their solutions and the ground truth")
+    fig.tight_layout()
+    return fig
+
+
+# ------------------------------------------------------------------------- issue 11: new arms, new measures
+
+
+def _label(s: str) -> str:
+    return SAMPLER_LABELS.get(s, s)
+
+
+def _colour(s: str) -> str:
+    return f"C{SAMPLER_NAMES.index(s) % 10}" if s in SAMPLER_NAMES else "k"
+
+
+def ablation_speedups(ert: pd.DataFrame) -> Figure:
+    """Speed-up aRT_uniform ÷ aRT_arm (bootstrap 95 % interval), per α (columns) and unit (rows: iterations,
+    CPU s); log scale, ∞ drawn as an arrow at the top."""
+    alphas = sorted(ert["alpha"].unique())
+    units = [u for u in ("iterations", "cpu_s") if u in set(ert["unit"])]
+    fig, axes = plt.subplots(len(units), len(alphas), figsize=(5 * len(alphas), 3.6 * len(units)), squeeze=False)
+    for i, unit in enumerate(units):
+        for j, alpha in enumerate(alphas):
+            ax = axes[i, j]
+            t = ert[(ert["alpha"] == alpha) & (ert["unit"] == unit)].set_index("sampler")
+            order = _samplers(t.reset_index())
+            finite = t["speedup"].replace([np.inf, -np.inf], np.nan)
+            top = float(np.nanmax([finite.max(), t["speedup_ci95_high"].replace(np.inf, np.nan).max(), 1.0]) * 2)
+            for x, s in enumerate(order):
+                v = t.loc[s, "speedup"]
+                lo, hi = t.loc[s, "speedup_ci95_low"], t.loc[s, "speedup_ci95_high"]
+                y = top if np.isinf(v) else v
+                if np.isfinite(y) and y > 0:
+                    ax.bar(x, y, color=_colour(s), alpha=0.7)
+                if np.isfinite(lo) and lo > 0:
+                    ax.plot([x, x], [lo, top if np.isinf(hi) else hi], color="k", lw=1.2)
+                ax.text(x, y if np.isfinite(y) and y > 0 else 1, f"n_HQ={int(t.loc[s, 'k_high_quality'])}",
+                        ha="center", va="bottom", fontsize=7)
+            ax.axhline(1.0, color="grey", ls="--", lw=0.8)
+            ax.set_yscale("log")
+            ax.set_xticks(range(len(order)), [_label(s) for s in order], rotation=35, ha="right", fontsize=7)
+            ax.set_ylabel(f"speed-up vs uniform ({'IPOPT iterations' if unit == 'iterations' else 'CPU s'})")
+            ax.set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
+    fig.suptitle("Expected running time per high-quality solution: aRT(uniform) ÷ aRT(arm), bootstrap 95 % CI")
+    fig.tight_layout()
+    return fig
+
+
+def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
+    """Fig. 22 done with a fixed iteration cap: per α (columns), the paper's ratio of percentages (top) and
+    the throughput ratio (bottom), arm ÷ uniform, as a function of the cap."""
+    alphas = sorted(capped["alpha"].unique())
+    fig, axes = plt.subplots(2, len(alphas), figsize=(5 * len(alphas), 7), squeeze=False, sharex=True)
+    for j, alpha in enumerate(alphas):
+        t = capped[capped["alpha"] == alpha]
+        for s in _samplers(t):
+            g = t[t["sampler"] == s].sort_values("cap_iterations")
+            for i, col in enumerate(("percent_ratio", "throughput_ratio")):
+                y = g[col].replace(np.inf, np.nan) if col in g else pd.Series(np.nan, index=g.index)
+                axes[i, j].plot(g["cap_iterations"], y, "o-", color=_colour(s), label=_label(s), ms=3)
+        axes[0, j].set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
+        axes[0, j].set_ylabel("% within cap ÷ uniform's")
+        axes[1, j].set_ylabel("HQ per iteration ÷ uniform's")
+        axes[1, j].set_xlabel("iteration cap (fixed before the solves)")
+        for ax in axes[:, j]:
+            ax.axhline(1.0, color="grey", ls="--", lw=0.8)
+            ax.set_xscale("log")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("Fig. 22 (iteration cap) — ratio of percentages and throughput ratio vs the cap (∞ not drawn)")
+    fig.tight_layout()
+    return fig
+
+
+def ablation_anytime(curves: pd.DataFrame) -> Figure:
+    """Anytime curves per α (rows): best m_f vs cumulative CPU s and vs cumulative iterations, and the
+    number of η-distinct high-quality optima vs cumulative CPU s."""
+    alphas = sorted(curves["alpha"].unique())
+    fig, axes = plt.subplots(len(alphas), 3, figsize=(15, 3.8 * len(alphas)), squeeze=False)
+    for i, alpha in enumerate(alphas):
+        t = curves[curves["alpha"] == alpha]
+        for s in _samplers(t):
+            g = t[t["sampler"] == s]
+            kw = {"color": _colour(s), "label": _label(s), "where": "post"}
+            axes[i, 0].step(g["cpu_s_cumulative"], g["best_m_f"], **kw)
+            axes[i, 1].step(g["iterations_cumulative"], g["best_m_f"], **kw)
+            axes[i, 2].step(g["cpu_s_cumulative"], g["distinct_optima"], **kw)
+        for ax, xl, yl in zip(axes[i], ("cumulative CPU s", "cumulative IPOPT iterations", "cumulative CPU s"),
+                              ("best high-quality m_f (kg)", "best high-quality m_f (kg)", "η-distinct optima")):
+            ax.set_xlabel(xl)
+            ax.set_ylabel(yl)
+            ax.set_title(f"α = {alpha:g}", fontsize=9)
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("Anytime performance of each arm (starts in order)")
+    fig.tight_layout()
+    return fig
+
+
+def ablation_beta_sweep(sweep: pd.DataFrame) -> Figure:
+    """High-quality rate (%) vs β with Wilson 95 % intervals, per α (columns) and arm."""
+    alphas = sorted(sweep["alpha"].unique())
+    fig, axes = plt.subplots(1, len(alphas), figsize=(5 * len(alphas), 3.8), squeeze=False)
+    for ax, alpha in zip(axes[0], alphas):
+        t = sweep[sweep["alpha"] == alpha]
+        samplers = _samplers(t)
+        for k, s in enumerate(samplers):
+            g = t[t["sampler"] == s].sort_values("beta_kg")
+            x = g["beta_kg"] + 0.25 * (k - len(samplers) / 2)
+            ax.errorbar(x, g["percent"], yerr=[g["percent"] - g["ci95_low"], g["ci95_high"] - g["percent"]],
+                        fmt="o-", color=_colour(s), label=_label(s), ms=3, capsize=2, lw=1)
+        ax.set_xlabel("β (kg)")
+        ax.set_ylabel("% of starts into A(α, β)")
+        ax.set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("High-quality rate vs the quality threshold β (Wilson 95 % intervals)")
     fig.tight_layout()
     return fig

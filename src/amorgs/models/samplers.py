@@ -13,6 +13,13 @@ The five samplers of the ablation (paper Sec. V.B.7), for the LT-CR3BP (N = 20, 
     vanilla_cvae          the whole vector ~ vanilla CVAE(α)   (Cartesian controls, see cr3bp_models)
     amorgs                τ, m_f ~ GMM-prior CVAE(α);          controls = LSTM(τ, m_f, α)
 
+and three non-neural (or half-neural) baselines that reuse known solutions (issue 11)::
+
+    nearest_alpha            HQ solutions of the nearest training α, drawn with replacement, unchanged
+    nearest_alpha_perturbed  the same + N(0, σ²) noise in the box-normalised space, then make_valid
+    gmm_lstm                 τ, m_f ~ per-training-α Gaussian mixture, blended between the bracketing α;
+                             controls = LSTM(τ, m_f, α)
+
 The LSTM is deterministic given its conditioning; all randomness of a learned sampler comes from ``rng``:
 first one draw of the torch seed (when a CVAE is sampled), then the uniform parts in layout order.
 :func:`build_sampler` loads the models from a directory of checkpoints named as in :data:`CHECKPOINTS`.
@@ -25,21 +32,22 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+import pandas as pd
 import torch
 
+from amorgs.ablation.arms import (  # noqa: F401  (re-exported)
+    BASELINE_SAMPLER_NAMES,
+    NEEDS_HIGH_QUALITY,
+    NEEDS_MODELS,
+    PAPER_SAMPLER_NAMES,
+    SAMPLER_LABELS,
+    SAMPLER_NAMES,
+)
 from amorgs.models import cvae, lstm
 from amorgs.models.cr3bp_models import lstm_conditioning, stored_from_vanilla
 from amorgs.problems import Problem
 from amorgs.problems.base import check_alpha
 
-SAMPLER_NAMES = ("uniform", "cvae_uniform_control", "uniform_lstm_control", "vanilla_cvae", "amorgs")
-SAMPLER_LABELS = {
-    "uniform": "Uniform",
-    "uniform_lstm_control": "Uniform time & mass, LSTM control",
-    "cvae_uniform_control": "CVAE time & mass, uniform control",
-    "vanilla_cvae": "Vanilla CVAE",
-    "amorgs": "AmorGS",
-}
 #: Model name → checkpoint file name inside a models directory (written by the train step).
 CHECKPOINTS = {"cvae_gmm": "cvae_gmm.pt", "vanilla_cvae": "vanilla_cvae.pt", "lstm": "lstm.pt"}
 
@@ -144,6 +152,152 @@ class AmorGSSampler:
         return make_valid(x, self.problem)
 
 
+# --------------------------------------------------------------------------------- non-neural baselines
+#
+# Three arms that answer "does learning beat reusing known solutions?" (issue 11).  They read the filtered
+# high-quality table (``results/cr3bp/high_quality.parquet``) restricted to the *training* α: a row whose α
+# has the label (three decimals) of the queried α is never used, so a test α can never see its own solutions.
+
+
+def _training_rows(high_quality: pd.DataFrame, train_alphas, names) -> dict[float, np.ndarray]:
+    """Training α → the decision vectors (m, 3N+4) of its high-quality rows; α without rows are left out."""
+    from amorgs.config import alpha_label
+
+    if high_quality is None or not len(high_quality):
+        raise ValueError("the high-quality table is empty: the nearest-α / GMM baselines need training solutions")
+    wanted = {alpha_label(a): float(a) for a in train_alphas}
+    labels = high_quality["alpha"].map(alpha_label)
+    out: dict[float, np.ndarray] = {}
+    for label, alpha in sorted(wanted.items(), key=lambda kv: kv[1]):
+        rows = high_quality[labels == label]
+        if len(rows):
+            out[alpha] = rows[list(names)].to_numpy(dtype=np.float64)
+    if not out:
+        raise ValueError(f"no high-quality rows at the training α {sorted(wanted.values())}")
+    return out
+
+
+def _usable(by_alpha: dict[float, np.ndarray], alpha: float) -> list[float]:
+    """The training α available at query ``alpha`` (any α sharing its three-decimal label excluded), sorted."""
+    from amorgs.config import alpha_label
+
+    keep = [a for a in sorted(by_alpha) if alpha_label(a) != alpha_label(alpha)]
+    if not keep:
+        raise ValueError(f"no training α other than the queried α = {alpha!r}")
+    return keep
+
+
+def nearest_training_alpha(by_alpha: dict[float, np.ndarray], alpha: float) -> float:
+    """The training α closest to ``alpha`` (ties: the smaller one), never ``alpha`` itself."""
+    keep = _usable(by_alpha, alpha)
+    return min(keep, key=lambda a: (abs(a - alpha), a))
+
+
+class NearestAlphaSampler:
+    """Reuse, unchanged, the high-quality solutions of the nearest *training* α: ``n`` rows drawn uniformly
+    with replacement (one ``rng.integers`` call) from that α's rows.  No learning at all."""
+
+    name = "nearest_alpha"
+
+    def __init__(self, problem: Problem, high_quality: pd.DataFrame, train_alphas):
+        self.problem = problem
+        self.by_alpha = _training_rows(high_quality, train_alphas, problem.variable_names)
+
+    def _draw(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        alpha = check_alpha(alpha, self.problem.alpha_range, self.problem.name)
+        rows = self.by_alpha[nearest_training_alpha(self.by_alpha, alpha)]
+        return rows[rng.integers(0, len(rows), size=n)]
+
+    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        return make_valid(self._draw(alpha, n, rng), self.problem)
+
+
+class NearestAlphaPerturbedSampler(NearestAlphaSampler):
+    """:class:`NearestAlphaSampler` plus Gaussian noise in the *normalised box*: each coordinate is mapped
+    to [0, 1] by (x − lower)/(upper − lower) (τ by 40/15/15 TU, m_f by m0, θ by 2π, φ by π, ρ by 1), noise
+    N(0, ``scale``²) is added there (one ``rng.normal`` call after the row draw), mapped back, then
+    :func:`make_valid` wraps the azimuths and clips the rest into the bounds."""
+
+    name = "nearest_alpha_perturbed"
+
+    def __init__(self, problem: Problem, high_quality: pd.DataFrame, train_alphas, scale: float = 0.02):
+        super().__init__(problem, high_quality, train_alphas)
+        if not (scale >= 0 and math.isfinite(scale)):
+            raise ValueError(f"perturbation scale must be a finite number ≥ 0, got {scale!r}")
+        self.scale = float(scale)
+
+    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        x = self._draw(alpha, n, rng)
+        span = self.problem.upper - self.problem.lower
+        z = (x - self.problem.lower) / span + rng.normal(0.0, self.scale, size=x.shape)
+        return make_valid(self.problem.lower + z * span, self.problem)
+
+
+class GMMLSTMSampler:
+    """A cheap non-neural density for (τ_s, τ_i, τ_f, m_f) with the LSTM's controls.
+
+    Per training α a full-covariance Gaussian mixture (scikit-learn, ``min(components, rows)`` components,
+    ``random_state=0``: the fit is deterministic) on that α's high-quality (τ_s, τ_i, τ_f, m_f).  At a query α
+    between two training α a < α < b the density is the *mixture of the two mixtures*, weighted
+    (b − α)/(b − a) and (α − a)/(b − a); outside the training range, the nearest α's mixture.  Sampling
+    uses only ``rng`` (one draw of the bracket per sample, then the component, then standard normals);
+    the controls are LSTM(τ, m_f, α) as in AmorGS.
+    """
+
+    name = "gmm_lstm"
+
+    def __init__(self, problem: Problem, high_quality: pd.DataFrame, train_alphas, control_lstm: lstm.ControlLSTM,
+                 components: int = 5):
+        from sklearn.mixture import GaussianMixture
+
+        self.problem = problem
+        self.lstm = control_lstm
+        self.by_alpha = _training_rows(high_quality, train_alphas, problem.variable_names)
+        self.mixtures: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        for a, rows in self.by_alpha.items():
+            tm = rows[:, :4]
+            k = max(1, min(int(components), len(tm)))
+            if len(tm) == 1:  # one solution: a point mass with a small isotropic spread
+                self.mixtures[a] = (np.ones(1), tm.copy(), np.eye(4)[None] * 1e-3)
+                continue
+            gm = GaussianMixture(k, covariance_type="full", reg_covar=1e-4, random_state=0).fit(tm)
+            self.mixtures[a] = (gm.weights_ / gm.weights_.sum(), gm.means_, np.linalg.cholesky(gm.covariances_))
+
+    def bracket(self, alpha: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((a, w_a), (b, w_b)): the training α whose mixtures are blended at ``alpha`` and their weights."""
+        keep = _usable(self.by_alpha, alpha)
+        below = [a for a in keep if a <= alpha]
+        above = [a for a in keep if a >= alpha]
+        if not below or not above:
+            a = nearest_training_alpha(self.by_alpha, alpha)
+            return (a, 1.0), (a, 0.0)
+        a, b = below[-1], above[0]
+        if a == b:
+            return (a, 1.0), (b, 0.0)
+        w = (b - alpha) / (b - a)
+        return (a, w), (b, 1.0 - w)
+
+    def time_mass(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        (a, wa), (b, _) = self.bracket(alpha)
+        use_a = rng.random(n) < wa
+        out = np.empty((n, 4))
+        for src, mask in ((a, use_a), (b, ~use_a)):
+            m = int(mask.sum())
+            if not m:
+                continue
+            weights, means, chol = self.mixtures[src]
+            comp = rng.choice(len(weights), size=m, p=weights)
+            z = rng.standard_normal((m, 4))
+            out[mask] = means[comp] + np.einsum("nij,nj->ni", chol[comp], z)
+        return out
+
+    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        alpha = check_alpha(alpha, self.problem.alpha_range, self.problem.name)
+        tm = np.clip(self.time_mass(alpha, n, rng), self.problem.lower[:4], self.problem.upper[:4])
+        x = np.concatenate([tm, self.lstm.generate(lstm_conditioning(tm, alpha))], axis=1)
+        return make_valid(x, self.problem)
+
+
 def _load_cvae(path: Path, cls: type[cvae.GMMPriorCVAE] | type[cvae.VanillaCVAE]):
     """A CVAE checkpoint that must hold a ``cls`` model; ``ValueError`` naming the file otherwise."""
     model = cvae.load(path)
@@ -152,13 +306,28 @@ def _load_cvae(path: Path, cls: type[cvae.GMMPriorCVAE] | type[cvae.VanillaCVAE]
     return model
 
 
-def build_sampler(name: str, problem: Problem, models_dir: str | Path) -> Sampler:
+def build_sampler(
+    name: str,
+    problem: Problem,
+    models_dir: str | Path | None = None,
+    high_quality: pd.DataFrame | None = None,
+    train_alphas=None,
+    perturbation_scale: float = 0.02,
+    gmm_components: int = 5,
+) -> Sampler:
     """The sampler called ``name`` (one of :data:`SAMPLER_NAMES`), its models loaded from ``models_dir``.
 
     Checkpoints are read on the CPU: ``cvae_gmm.pt`` (time & mass CVAE), ``vanilla_cvae.pt`` and ``lstm.pt``,
-    only those the sampler needs; ``uniform`` needs none.
+    only those the sampler needs (:data:`NEEDS_MODELS`); ``uniform`` needs none.  The baselines of
+    :data:`NEEDS_HIGH_QUALITY` also need ``high_quality`` (the filtered table) and ``train_alphas``.
     """
-    models = Path(models_dir)
+    if name not in SAMPLER_NAMES:
+        raise ValueError(f"unknown sampler {name!r}; choose one of {SAMPLER_NAMES}")
+    if NEEDS_MODELS[name] and models_dir is None:
+        raise ValueError(f"sampler {name!r} needs a models directory")
+    if name in NEEDS_HIGH_QUALITY and (high_quality is None or train_alphas is None):
+        raise ValueError(f"sampler {name!r} needs the high-quality table and the training α")
+    models = Path(models_dir) if models_dir is not None else None
     if name == "uniform":
         return UniformSampler(problem)
     if name == "vanilla_cvae":
@@ -170,4 +339,8 @@ def build_sampler(name: str, problem: Problem, models_dir: str | Path) -> Sample
     if name == "amorgs":
         gmm = _load_cvae(models / CHECKPOINTS["cvae_gmm"], cvae.GMMPriorCVAE)
         return AmorGSSampler(problem, gmm, lstm.load(models / CHECKPOINTS["lstm"]))
-    raise ValueError(f"unknown sampler {name!r}; choose one of {SAMPLER_NAMES}")
+    if name == "nearest_alpha":
+        return NearestAlphaSampler(problem, high_quality, train_alphas)
+    if name == "nearest_alpha_perturbed":
+        return NearestAlphaPerturbedSampler(problem, high_quality, train_alphas, perturbation_scale)
+    return GMMLSTMSampler(problem, high_quality, train_alphas, lstm.load(models / CHECKPOINTS["lstm"]), gmm_components)

@@ -54,6 +54,9 @@ class SolverOptions:
     feasibility_tol: float = 1e-8
     verify_tol: float = VERIFY_TOLERANCE
     linear_solver: str = "mumps"
+    stall_window: int = 0
+    stall_factor: float = 0.1
+    stall_floor: float = 1e-6
     compile: str = "cache"  # "cache": C code compiled once per machine; "jit": per process; "none"
     transcription: TranscriptionOptions = field(default_factory=TranscriptionOptions)
 
@@ -85,6 +88,57 @@ class SolverOptions:
     def digest(self) -> str:
         """Short stable hash of the options (stored in every row as ``options_hash``)."""
         return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode()).hexdigest()[:12]
+
+
+class _Monitor(ca.Callback):
+    """IPOPT iteration callback: records max|g| per iteration and stops a stalled solve.
+
+    Rule (deterministic, iteration counts and infeasibility only): at iteration i ≥ ``window`` the solve is
+    stopped when the best max|g| of iterations 0…i is still above ``floor`` and above ``factor`` × the best
+    max|g| of iterations 0…i−window, i.e. the primal infeasibility did not fall by 1/factor over the last
+    ``window`` iterations.  ``window`` = 0 only records.
+    """
+
+    def __init__(self, n_x: int, n_g: int, n_p: int, window: int, factor: float, floor: float):
+        ca.Callback.__init__(self)
+        self._sizes = {"x": n_x, "f": 1, "g": n_g, "lam_x": n_x, "lam_g": n_g, "lam_p": n_p}
+        self.window, self.factor, self.floor = int(window), float(factor), float(floor)
+        self.trace: list[float] = []
+        self.best: list[float] = []
+        self.stopped_at: int | None = None
+        self.construct("cr3bp_monitor", {})
+
+    def reset(self) -> None:
+        self.trace, self.best, self.stopped_at = [], [], None
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        n = self._sizes.get(ca.nlpsol_out(i), 0)
+        return ca.Sparsity.dense(n, 1) if n else ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
+        inf = float(np.max(np.abs(g))) if g.size and np.all(np.isfinite(g)) else math.inf
+        self.trace.append(inf)
+        self.best.append(min(inf, self.best[-1]) if self.best else inf)
+        i = len(self.trace) - 1
+        if self.window > 0 and i >= self.window and self.stopped_at is None:
+            best, before = self.best[i], self.best[i - self.window]
+            if best > self.floor and best > self.factor * before:
+                self.stopped_at = i
+                return [1]
+        return [0]
 
 
 class LowThrustTransfer:

@@ -1,0 +1,35 @@
+"""The registry of ablation arms (samplers): names, labels and what each needs — no torch import, so the
+config, the workflow and the figures can use it.  The implementations live in
+:mod:`amorgs.models.samplers`.
+"""
+
+from __future__ import annotations
+
+#: The paper's five arms (Sec. V.B.7, Table 6).
+PAPER_SAMPLER_NAMES = ("uniform", "cvae_uniform_control", "uniform_lstm_control", "vanilla_cvae", "amorgs")
+#: Arms added to ask whether learning beats reusing known solutions (issue 11).
+BASELINE_SAMPLER_NAMES = ("nearest_alpha", "nearest_alpha_perturbed", "gmm_lstm")
+SAMPLER_NAMES = PAPER_SAMPLER_NAMES + BASELINE_SAMPLER_NAMES
+SAMPLER_LABELS = {
+    "uniform": "Uniform",
+    "uniform_lstm_control": "Uniform time & mass, LSTM control",
+    "cvae_uniform_control": "CVAE time & mass, uniform control",
+    "vanilla_cvae": "Vanilla CVAE",
+    "amorgs": "AmorGS",
+    "nearest_alpha": "Nearest training α, reused",
+    "nearest_alpha_perturbed": "Nearest training α + noise",
+    "gmm_lstm": "GMM time & mass, LSTM control",
+}
+#: Arms that read the filtered high-quality table (restricted to the training α).
+NEEDS_HIGH_QUALITY = BASELINE_SAMPLER_NAMES
+#: Arm → the checkpoints (keys of ``amorgs.models.samplers.CHECKPOINTS``) it loads.
+NEEDS_MODELS = {
+    "uniform": (),
+    "cvae_uniform_control": ("cvae_gmm",),
+    "uniform_lstm_control": ("lstm",),
+    "vanilla_cvae": ("vanilla_cvae",),
+    "amorgs": ("cvae_gmm", "lstm"),
+    "nearest_alpha": (),
+    "nearest_alpha_perturbed": (),
+    "gmm_lstm": ("lstm",),
+}

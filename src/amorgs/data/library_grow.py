@@ -1,0 +1,96 @@
+"""Growing the solution library in batches: Snakemake generates, :func:`export_library` consolidates.
+
+A *batch* ``b`` is, for every α of the library config (its 12 training α and 2 test α), the shard indices
+``b·S … b·S + S − 1`` with ``S = problems.<problem>.generate.shards``.  Shard seeds derive from (library seed,
+problem, α, shard index), so batches never collide with each other or with shards the library already
+holds, and every batch is balanced across α.  :func:`grow` runs the lowest batch that still has shards
+missing from the library, exports what finished, and repeats — each batch is one ordinary ``snakemake``
+invocation (its own working directory, so it never touches a workflow run's ``results/``), and every shard
+and every export is written atomically: stopping at any moment loses at most the solves in flight.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from amorgs import layout
+from amorgs.config import load_config
+from amorgs.data.library import export_library, held_shards
+
+
+def batch_targets(config_file: str | Path, library_dir: str | Path, problem: str, batch: int) -> list[str]:
+    """The shard paths (relative to the grow working directory) of ``batch`` that the library lacks."""
+    cfg = load_config(config_file)
+    section = getattr(cfg.problems, problem)
+    per_batch = section.generate.shards
+    held = held_shards(library_dir, problem)
+    return [
+        layout.SHARD.format(problem=problem, alpha=label, shard=k)
+        for k in range(batch * per_batch, (batch + 1) * per_batch)
+        for label in section.alpha_values()
+        if (label, k) not in held
+    ]
+
+
+def next_batch(config_file: str | Path, library_dir: str | Path, problem: str) -> int:
+    """The lowest batch with a shard the library does not hold yet."""
+    batch = 0
+    while not batch_targets(config_file, library_dir, problem, batch):
+        batch += 1
+    return batch
+
+
+def find_snakefile(root: str | Path = ".") -> Path:
+    """The workflow's Snakefile in the repository at ``root`` (where Snakemake itself would look)."""
+    for candidate in ("workflow/Snakefile", "Snakefile"):
+        if (Path(root) / candidate).is_file():
+            return (Path(root) / candidate).resolve()
+    raise FileNotFoundError(f"no Snakefile under {Path(root).resolve()}: run library-grow from the repository root")
+
+
+def snakemake_command(config_file: str | Path, workdir: str | Path, cores: int, targets: list[str]) -> list[str]:
+    """The Snakemake call of one batch: the repository's workflow, run in ``workdir``."""
+    return [
+        sys.executable, "-m", "snakemake", *targets,
+        "--snakefile", str(find_snakefile()),
+        "--directory", str(Path(workdir).resolve()),
+        "--configfile", str(Path(config_file).resolve()),
+        "--cores", str(cores),
+        "--rerun-incomplete",
+        "--keep-going",
+    ]
+
+
+def grow(config_file: str | Path, library_dir: str | Path = "data/library", problem: str = "cr3bp",
+         workdir: str | Path = "results/library-grow", cores: int = 2, batches: int = 1,
+         hours: float | None = None, niceness: int = 19, log=print) -> list[dict]:
+    """Run up to ``batches`` batches (stop starting new ones after ``hours``), exporting after each one.
+
+    Returns one export summary per batch (see :func:`export_library`).  ``niceness`` is added to this
+    process's priority (and so to Snakemake's and its jobs') before anything starts.
+    """
+    if niceness:
+        os.nice(niceness)
+    t0 = time.monotonic()
+    solutions = Path(workdir) / "results" / problem / "solutions"
+    summaries = []
+    for _ in range(batches):
+        if hours is not None and time.monotonic() - t0 > hours * 3600:
+            log(f"library-grow: {hours} h elapsed, not starting another batch")
+            break
+        batch = next_batch(config_file, library_dir, problem)
+        targets = batch_targets(config_file, library_dir, problem, batch)
+        log(f"library-grow: batch {batch}: {len(targets)} shard job(s) in {workdir}")
+        done = subprocess.run(snakemake_command(config_file, workdir, cores, targets), check=False)
+        summary = export_library(solutions, library_dir, problem, config_file)
+        summaries.append({"batch": batch, "snakemake_exit": done.returncode, **summary})
+        log(f"library-grow: batch {batch} exported: {summary['rows_added']} new rows; library {summary['rows']} rows, "
+            f"{summary['converged']} converged, {summary['cpu_hours']:.2f} CPU-hours")
+        if done.returncode != 0:
+            log(f"library-grow: snakemake exited {done.returncode}; what finished was exported, stopping")
+            break
+    return summaries
