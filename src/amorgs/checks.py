@@ -1,7 +1,8 @@
 """``amorgs check-outputs``: does the results tree hold everything a config promises?
 
 Every output must exist and be non-empty; solution tables must pass the table schema and hold rows (ablation
-cells: the key columns, ``sampler``, ``converged``, ``wall_s``);
+cells: the key columns, ``sampler``, ``converged``, ``wall_s``); the ablation's statistics tables must have
+``alpha`` and ``sampler`` columns and rows, and its summary the expected-running-time metrics;
 figures must be PNG files; JSON must parse; and, with MLflow enabled, every job of the config must have a
 FINISHED run in the store (from this or an earlier invocation), every figure must be logged as an
 artifact, and the latest workflow run must have FINISHED.
@@ -48,6 +49,12 @@ def expected_jobs(cfg: Config) -> list[tuple[str, dict[str, str]]]:
             for a in cfg.problems.cr3bp.alphas.test
             for s in cfg.ablation.samplers
         ]
+        jobs += [
+            ("ablation_cell_replicate", {"alpha": alpha_label(a), "sampler": s, "mseed": str(m)})
+            for m in cfg.cr3bp_models.extra_seeds
+            for a in cfg.problems.cr3bp.alphas.test
+            for s in cfg.ablation.samplers
+        ]
         jobs.append(("ablation_report", {}))
     jobs += [(name, {}) for name in layout.figure_names(cfg) if name in _FIGURE_RULES]
     return jobs
@@ -63,7 +70,14 @@ def _check_file(path: str) -> str | None:
         if p.suffix == ".png" and not p.read_bytes().startswith(_PNG_SIGNATURE):
             return f"{path}: not a PNG image"
         if p.suffix == ".json":
-            json.loads(p.read_text())
+            data = json.loads(p.read_text())
+            if path == layout.ABLATION_SUMMARY and not any(k.startswith("aRT_iterations_") for k in data):
+                return f"{path}: no expected-running-time metrics (aRT_iterations_*)"
+        if p.suffix == ".csv" and Path(path).name.startswith("ablation_") and "iteration_capped" not in path:
+            df = pd.read_csv(p)
+            missing = [c for c in ("alpha", "sampler") if c not in df.columns]
+            if missing or df.empty:
+                return f"{path}: ablation table lacks column(s) {missing} or rows"
         if p.suffix == ".parquet" and "/ablation/" in path:
             df = pd.read_parquet(p)
             missing = [c for c in ("problem", "alpha", "seed", "start", "sampler", "converged", "wall_s") if c not in df.columns]
@@ -76,7 +90,7 @@ def _check_file(path: str) -> str | None:
             validate_solutions(df, where=path)
             if df.empty:
                 return f"{path}: no rows"
-    except ValueError as exc:
+    except (ValueError, pd.errors.EmptyDataError) as exc:
         return f"{path}: {exc}"
     return None
 

@@ -120,7 +120,10 @@ def cmd_filter(args: argparse.Namespace) -> None:
     thresholds = {"min_final_mass_kg": args.min_final_mass_kg, "max_objective": args.max_objective}
     with tracking.job_run("filter", {"problem": args.problem}) as run:
         run.log_params(thresholds)
-        df = pd.concat([pd.read_parquet(p) for p in args.inputs], ignore_index=True)
+        tables = {path: pd.read_parquet(path) for path in args.inputs}
+        for path, table in tables.items():
+            run.log_dataset(table, path, "training")
+        df = pd.concat(tables.values(), ignore_index=True)
         hq = high_quality(df, **thresholds)
         report = {"problem": args.problem, **quality_report(df, hq, thresholds)}
         write_parquet(hq, args.output)
@@ -161,12 +164,15 @@ def cmd_train_dejong_cvae(args: argparse.Namespace) -> None:
     with tracking.job_run("train_dejong_cvae", {"problem": "dejong", "model": "cvae_gmm"}) as run:
         cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.learning_rate, seed=args.seed, device="cpu")
         run.log_params({"preset": args.preset, "rows": len(df), "train_alphas": len(train_labels), **vars(cfg)})
+        run.log_dataset(df, args.data, "training")
+        run.start_model("cvae_gmm", {"preset": args.preset, **vars(cfg)})
         torch.manual_seed(args.seed)
         model = cvae.GMMPriorCVAE(_dejong_cvae_config(args.preset), cvae.Normalizer.from_data(x))
         history = train(model, x, alpha, cfg, on_epoch=lambda epoch, metrics: run.log_metrics(metrics, step=epoch))
         with atomic_path(args.output) as tmp:
             cvae.save(model, tmp)
         run.log_metrics({f"final_{k}": v[-1] for k, v in history.items() if k != "epoch"})
+        run.finish_model(args.output, step=args.epochs)
     print(f"{args.output}: trained {args.epochs} epochs on {len(df)} minima")
 
 
@@ -325,11 +331,13 @@ def cmd_train_cr3bp(args: argparse.Namespace) -> None:
         cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.learning_rate, seed=args.seed, device="cpu")
         run.log_params({"preset": args.preset, "rows": len(hq), "train_alphas": sorted(train_labels),
                         "fraction": args.fraction, "threads": args.threads, **vars(cfg)})
+        run.log_dataset(hq, args.data, "training")
+        run.start_model(args.model, {"preset": args.preset, "fraction": args.fraction, **vars(cfg)})
         torch.manual_seed(args.seed)
         model = TRAINERS[args.model](hq, args.preset, cfg, on_epoch=lambda epoch, m: run.log_metrics(m, step=epoch))
         with atomic_path(args.output) as tmp:
             (lstm.save if args.model == "lstm" else cvae.save)(model, tmp)
-        run.log_artifact(args.output, "models")
+        run.finish_model(args.output, step=args.epochs)  # the checkpoint as a logged model and under models/
     print(f"{args.output}: {args.model} trained {args.epochs} epochs on {len(hq)} solutions")
 
 
@@ -375,6 +383,7 @@ def cmd_predict_cr3bp(args: argparse.Namespace) -> None:
                 frames.append(frame)
         samples = pd.concat(frames, ignore_index=True)
         hq = pd.read_parquet(args.high_quality)
+        run.log_dataset(hq, args.high_quality, "evaluation")  # the ground truth at the test α
         truth = pd.concat([at_alpha(hq, a) for a in args.test_alphas], ignore_index=True)
         learned = samples[samples["source"] != "uniform"]
         table = prediction_table(learned, truth, by=("alpha", "source", "data_fraction"))
@@ -402,21 +411,33 @@ def cmd_ablation_cell(args: argparse.Namespace) -> None:
     from amorgs import tracking
     from amorgs.ablation.experiment import run_cell
     from amorgs.data.io import write_parquet
-    from amorgs.models.samplers import UniformSampler, build_sampler
+    from amorgs.models.samplers import NEEDS_HIGH_QUALITY, NEEDS_MODELS, build_sampler
     from amorgs.problems import get_problem
 
     options = json.loads(args.solver_options)
     wildcards = {"alpha": alpha_label(args.alpha), "sampler": args.sampler}
-    with tracking.job_run("ablation_cell", wildcards) as run:
-        run.log_params({"alpha": args.alpha, "seed": args.seed, "starts": args.starts, "workers": args.workers, "solver": options})
+    if args.replicate:
+        wildcards["mseed"] = str(args.model_seed)
+    rule = "ablation_cell_replicate" if args.replicate else "ablation_cell"
+    if NEEDS_MODELS[args.sampler] and not args.models_dir:
+        raise SystemExit(f"ablation-cell: sampler {args.sampler!r} needs --models-dir")
+    if args.sampler in NEEDS_HIGH_QUALITY and not (args.high_quality and args.train_alphas):
+        raise SystemExit(f"ablation-cell: sampler {args.sampler!r} needs --high-quality and --train-alphas")
+    with tracking.job_run(rule, wildcards) as run:
+        run.log_params({"alpha": args.alpha, "seed": args.seed, "starts": args.starts, "workers": args.workers,
+                        "solver": options, "model_seed": args.model_seed, "perturbation_scale": args.perturbation_scale,
+                        "gmm_components": args.gmm_components})
         problem = get_problem("cr3bp")
-        if args.sampler == "uniform":
-            sampler = UniformSampler(problem)
-        elif args.models_dir:
-            sampler = build_sampler(args.sampler, problem, args.models_dir)
-        else:
-            raise SystemExit(f"ablation-cell: sampler {args.sampler!r} needs --models-dir")
+        hq = None
+        if args.sampler in NEEDS_HIGH_QUALITY:
+            import pandas as pd
+
+            hq = pd.read_parquet(args.high_quality)
+        sampler = build_sampler(args.sampler, problem, args.models_dir, high_quality=hq, train_alphas=args.train_alphas,
+                                perturbation_scale=args.perturbation_scale, gmm_components=args.gmm_components)
         df = run_cell("cr3bp", args.alpha, sampler, args.starts, args.seed, options, args.workers)
+        if args.model_seed is not None:
+            df.insert(2, "model_seed", int(args.model_seed))
         write_parquet(df, args.output)
         conv = df[df["converged"]]
         run.log_metrics(
@@ -438,20 +459,39 @@ def cmd_ablation_report(args: argparse.Namespace) -> None:
     import pandas as pd
 
     from amorgs import layout, tracking
-    from amorgs.ablation.report import summarize, table6_markdown
+    from amorgs.ablation.report import MARKDOWN_TITLES, markdown_table, summarize, table6_markdown
     from amorgs.data.io import atomic_path, write_json
 
     with tracking.job_run("ablation_report", {}) as run:
         run.log_params({"beta_kg": args.beta, "cells": len(args.cells)})
-        metrics, tables, figures = summarize(_read_tables(args.cells), pd.read_parquet(args.high_quality), args.beta)
+        truth = pd.read_parquet(args.high_quality)
+        run.log_dataset(truth, args.high_quality, "evaluation")  # the ground truth at the test α
+        run.log_params({"beta_sweep_kg": args.beta_sweep, "iteration_caps": args.iteration_caps,
+                        "max_iter": args.max_iter, "n_boot": args.n_boot, "bootstrap_seed": args.seed})
+        metrics, tables, figures = summarize(
+            _read_tables(args.cells), truth, args.beta, n_boot=args.n_boot, seed=args.seed,
+            beta_sweep=tuple(args.beta_sweep), iteration_caps=tuple(args.iteration_caps), max_iter=args.max_iter,
+        )
         for key, path in (("table6", args.table6_csv), ("capped", args.capped), ("coverage", args.coverage)):
             with atomic_path(path) as tmp:
                 tables[key].to_csv(tmp, index=False)
         with atomic_path(args.table6_md) as tmp:
             tmp.write_text(table6_markdown(tables["table6"]) + "\n")
+        tables_dir = args.tables_dir or os.path.dirname(args.table6_csv)
+        written = [args.summary, args.table6_csv, args.table6_md, args.capped, args.coverage]
+        for key in ("rates", "beta_sweep", "ert", "iteration_capped", "anytime"):
+            csv = os.path.join(tables_dir, f"ablation_{key}.csv")
+            with atomic_path(csv) as tmp:
+                tables[key].to_csv(tmp, index=False)
+            written.append(csv)
+            if key in MARKDOWN_TITLES:
+                md = os.path.join(tables_dir, f"ablation_{key}.md")
+                with atomic_path(md) as tmp:
+                    tmp.write_text(markdown_table(tables[key], f"**{MARKDOWN_TITLES[key]}**"))
+                written.append(md)
         write_json(metrics, args.summary)
         run.log_metrics(_finite_metrics(metrics))
-        for path in (args.summary, args.table6_csv, args.table6_md, args.capped, args.coverage):
+        for path in written:
             run.log_artifact(path, "tables")
         _write_figures(figures, args.figures_dir, layout.ABLATION_FIGURES, run)
     print(f"{args.summary}: {len(metrics)} metrics over {len(args.cells)} cells")
@@ -503,6 +543,25 @@ def _compare(stored: object, fresh: object, path: str, rel_tol: float) -> list[s
     if isinstance(stored, (int, float)) and isinstance(fresh, (int, float)) and not isinstance(stored, bool):
         return [] if math.isclose(stored, fresh, rel_tol=rel_tol, abs_tol=rel_tol) else [f"{path}: {stored} vs {fresh}"]
     return [] if stored == fresh else [f"{path}: {stored!r} vs {fresh!r}"]
+
+
+def cmd_design(args: argparse.Namespace) -> None:
+    from amorgs.design import DesignRequest, run_design
+
+    request = DesignRequest(
+        alpha=args.alpha, n=args.n, sampler=args.sampler, beta_kg=args.beta, eta=args.eta, seed=args.seed,
+        workers=args.workers, round_size=args.round_size, max_starts=args.max_starts, max_cpu_s=args.max_cpu_s,
+        library_dir=args.library_dir, models_dir=args.models_dir, config=args.config,
+    )
+    result, paths = run_design(request, args.output, track=not args.no_mlflow, store_dir=args.mlflow_dir,
+                               progress=not args.quiet)
+    out = paths["reports"][0].parent
+    print(f"{out}: {len(result.selected)} of {args.n} solutions (α = {args.alpha:g} N, m_f ≥ {args.beta:g} kg, "
+          f"η = {args.eta:g}) from {result.starts} starts, {result.cpu_s:.0f} CPU s, {result.wall_s:.0f} s wall")
+    if result.found < args.n:
+        print(f"amorgs design: only {result.found} of {args.n} found before the budget ran out "
+              f"({result.stop_reason}); raise --max-starts / --max-cpu-s or lower -n", file=sys.stderr)
+        raise SystemExit(3)
 
 
 def cmd_ui(args: argparse.Namespace) -> None:
@@ -637,10 +696,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--figures-dir", required=True)
     p.set_defaults(func=cmd_predict_cr3bp)
 
+    from amorgs.ablation.arms import SAMPLER_NAMES
+
     p = sub.add_parser("ablation-cell", help="solve the guesses of one sampler at one test α")
     p.add_argument("--alpha", required=True, type=float)
-    p.add_argument("--sampler", required=True, choices=("uniform", "cvae_uniform_control", "uniform_lstm_control", "vanilla_cvae", "amorgs"))
-    p.add_argument("--models-dir", help="folder of the checkpoints (every sampler but uniform)")
+    p.add_argument("--sampler", required=True, choices=SAMPLER_NAMES)
+    p.add_argument("--models-dir", help="folder of the checkpoints (the arms that load a model)")
+    p.add_argument("--high-quality", help="filtered high-quality table (nearest_alpha, nearest_alpha_perturbed, gmm_lstm)")
+    p.add_argument("--train-alphas", type=float, nargs="+", help="the training α: the only rows those arms may use")
+    p.add_argument("--perturbation-scale", type=float, default=0.02, help="σ of nearest_alpha_perturbed (box-normalised)")
+    p.add_argument("--gmm-components", type=int, default=5, help="mixture components per training α of gmm_lstm")
+    p.add_argument("--model-seed", type=int, help="training seed of the models (written to the model_seed column)")
+    p.add_argument("--replicate", action="store_true", help="a replicate cell of an extra model seed (MLflow rule name)")
     p.add_argument("--starts", required=True, type=int)
     p.add_argument("--seed", required=True, type=int)
     p.add_argument("--workers", type=int, default=1)
@@ -657,6 +724,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--table6-md", required=True)
     p.add_argument("--capped", required=True)
     p.add_argument("--coverage", required=True)
+    p.add_argument("--tables-dir", help="folder of the issue-11 tables (default: the folder of --table6-csv)")
+    p.add_argument("--beta-sweep", type=float, nargs="*", default=[], help="extra β (kg) of the rate sweep")
+    p.add_argument("--iteration-caps", type=int, nargs="*", default=[], help="iteration caps fixed before the solves")
+    p.add_argument("--max-iter", type=int, help="the solver's max_iter (caps may not exceed it)")
+    p.add_argument("--n-boot", type=int, default=2000, help="bootstrap resamples")
+    p.add_argument("--seed", type=int, default=0, help="bootstrap seed")
     p.add_argument("--figures-dir", required=True)
     p.set_defaults(func=cmd_ablation_report)
 
@@ -688,6 +761,46 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--check", action="store_true", help="compare the stored file with a fresh computation")
     p.add_argument("--rel-tol", type=float, default=1e-9, help="--check: relative tolerance on numbers")
     p.set_defaults(func=cmd_boundary_conditions)
+
+    p = sub.add_parser(
+        "design",
+        help="N good, verified, η-diverse CR3BP transfers at one α, exported (tables, CSV, CCSDS OEM, plot)",
+        description="Solve warm starts at one α in rounds until N high-quality (converged and verified by\n"
+                    "independent re-propagation, m_f ≥ β) and η-diverse (paper Eq. 12) solutions are found or a\n"
+                    "budget runs out; write them with dense trajectories in the rotating frame and an Earth-centred\n"
+                    "inertial frame (epoch 2030-01-01T00:00:00 TDB at departure) as CSV, CCSDS OEM and a 3-D plot.",
+        epilog="example:\n  amorgs design --alpha 0.42 -n 20            # → results/design/alpha=0.420/\n"
+               "  amorgs design --alpha 0.42 -n 5 --seed 7 --max-starts 64 --output my-design\n"
+               "exit status: 0 all N found, 3 fewer found before the budget ran out (files still written)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--alpha", required=True, type=float, help="maximum thrust α in N, within [0.1, 1.0]")
+    p.add_argument("-n", "--n", dest="n", required=True, type=int, help="number of solutions wanted (≥ 1)")
+    p.add_argument("--sampler", default="nearest_alpha",
+                   help="warm-start sampler (default nearest_alpha: library solutions of the nearest training α); "
+                        "also uniform, nearest_alpha_perturbed, and the learned amorgs, cvae_uniform_control, "
+                        "uniform_lstm_control, vanilla_cvae, gmm_lstm (need --models-dir)")
+    p.add_argument("--beta", type=float, default=415.0, help="β: minimum final fuel mass m_f in kg (default 415)")
+    p.add_argument("--eta", type=float, default=0.02,
+                   help="η of Eq. 12, dimensionless: solutions must differ by more than η in (τ_s/40, τ_i/15, τ_f/15) "
+                        "(default 0.02 ≈ 0.8 TU of τ_s or 0.3 TU of τ_i, τ_f)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the warm starts; same seed, same result (default 0)")
+    p.add_argument("--workers", type=int, default=2, help="solver processes (default 2)")
+    p.add_argument("--round-size", type=int, default=16,
+                   help="starts solved per round; the stop criteria are checked between rounds (default 16)")
+    p.add_argument("--max-starts", type=int, default=400, help="budget: at most this many solves (default 400)")
+    p.add_argument("--max-cpu-s", type=float, default=3600.0,
+                   help="budget: start no new round after this many CPU seconds, workers included (default 3600)")
+    p.add_argument("--output", default=None, help="output folder (default results/design/alpha=<label>/)")
+    p.add_argument("--library-dir", default="data/library", help="the solution library shipped in the repository")
+    p.add_argument("--models-dir", default="data/models/cr3bp", help="checkpoints of the learned samplers")
+    p.add_argument("--config", default="config/default.yaml",
+                   help="config giving the solver options (problems.cr3bp.solver), training α and filter β")
+    p.add_argument("--mlflow-dir", default="results/mlflow/design",
+                   help="MLflow store of design calls (its own SQLite database; default results/mlflow/design)")
+    p.add_argument("--no-mlflow", action="store_true", help="do not mirror the call to MLflow")
+    p.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
+    p.set_defaults(func=cmd_design)
 
     p = sub.add_parser("ui", help="open the MLflow UI on results/mlflow")
     p.add_argument("--host", default="127.0.0.1")

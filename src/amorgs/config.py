@@ -227,7 +227,8 @@ class Cr3bpModels:
     ``preset`` (``paper`` or ``small``) picks the layer widths; Adam with ``learning_rate`` for ``epochs``
     epochs of ``batch_size`` rows; ``seed`` fixes weights, shuffling, subsampling and sampling;
     ``data_fractions``: extra GMM-CVAEs trained on these fractions of the data (Fig. 18); ``n_samples``:
-    samples drawn per test α for the prediction study (Figs. 17–20).
+    samples drawn per test α for the prediction study (Figs. 17–20); ``extra_seeds``: further training seeds
+    whose models serve the ablation's replicates (results/cr3bp/models/seed={s}/).
     """
 
     enabled: bool
@@ -236,15 +237,26 @@ class Cr3bpModels:
     batch_size: int
     learning_rate: float
     seed: int
+    extra_seeds: tuple[int, ...]
     data_fractions: tuple[float, ...]
     n_samples: int
+
+    @property
+    def seeds(self) -> tuple[int, ...]:
+        """Every model-training seed: ``seed`` (models under results/cr3bp/models/) then ``extra_seeds``."""
+        return (self.seed, *self.extra_seeds)
 
 
 @dataclass(frozen=True)
 class Ablation:
     """The warm-start ablation at the CR3BP test α (paper Sec. V.B.7, Table 6): per (test α, sampler) one job
     solving ``n_starts`` guesses with ``workers`` processes, the CR3BP solver options and a seed derived from
-    ``seed``; ``mem_mb`` and ``runtime_min`` are that job's resources."""
+    ``seed``; ``mem_mb`` and ``runtime_min`` are that job's resources.  Every arm runs once per model seed
+    (``cr3bp_models.seeds``), so each (α, arm) has ``n_starts × len(seeds)`` starts.
+
+    Issue 11: ``perturbation_scale`` (σ of nearest_alpha_perturbed, box-normalised), ``gmm_components``
+    (gmm_lstm), ``iteration_caps`` (the Fig. 22 study, fixed before the solves), ``beta_sweep_kg`` (extra β
+    of the rate sweep), ``n_boot`` (bootstrap resamples of the speed-up intervals)."""
 
     enabled: bool
     samplers: tuple[str, ...]
@@ -253,6 +265,11 @@ class Ablation:
     workers: int
     mem_mb: int
     runtime_min: int
+    perturbation_scale: float
+    gmm_components: int
+    iteration_caps: tuple[int, ...]
+    beta_sweep_kg: tuple[float, ...]
+    n_boot: int
 
 
 @dataclass(frozen=True)
@@ -348,10 +365,15 @@ def _build(tp: object, value: object) -> object:
 
 def _check(cfg: Config, source: str) -> None:
     """Cross-field rules the schema cannot express."""
+    from amorgs.problems import ALPHA_RANGES
+
     for field in dataclasses.fields(cfg.problems):
         name, problem = field.name, getattr(cfg.problems, field.name)
         seen: dict[str, float] = {}
+        lo, hi = ALPHA_RANGES[name]
         for a in (*problem.alphas.train_values(), *problem.alphas.test):
+            if not lo - 1e-12 <= a <= hi + 1e-12:
+                raise ConfigError(f"{source}: problems.{name}.alphas: α = {a!r} lies outside the problem's range [{lo:g}, {hi:g}]")
             label = alpha_label(a)
             if label in seen:
                 raise ConfigError(
@@ -371,6 +393,17 @@ def _check(cfg: Config, source: str) -> None:
     for key in ("cr3bp_models", "ablation"):
         if getattr(cfg, key).enabled and not cr3bp.alphas.test:
             raise ConfigError(f"{source}: {key}.enabled needs test α in problems.cr3bp.alphas.test")
-    learned = [s for s in cfg.ablation.samplers if s != "uniform"]
+    from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_NAMES
+
+    unknown = [s for s in cfg.ablation.samplers if s not in SAMPLER_NAMES]
+    if unknown:
+        raise ConfigError(f"{source}: ablation.samplers {unknown} are not registered arms {SAMPLER_NAMES}")
+    learned = [s for s in cfg.ablation.samplers if NEEDS_MODELS[s]]
     if cfg.ablation.enabled and learned and not cfg.cr3bp_models.enabled:
         raise ConfigError(f"{source}: ablation.samplers {learned} need cr3bp_models.enabled: true")
+    too_big = [c for c in cfg.ablation.iteration_caps if c > cr3bp.solver.max_iter]
+    if cfg.ablation.enabled and too_big:
+        raise ConfigError(
+            f"{source}: ablation.iteration_caps {too_big} exceed problems.cr3bp.solver.max_iter = "
+            f"{cr3bp.solver.max_iter}: a cap above the solver's own is not a real cap"
+        )

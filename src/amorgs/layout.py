@@ -3,7 +3,7 @@
 Templates use Snakemake's wildcard syntax: ``{problem}`` (``dejong``, ``cr3bp``), ``{alpha}`` (the α label
 of :func:`amorgs.config.alpha_label`, e.g. ``0.150``), ``{shard}`` (0-based), ``{model}`` (``cvae_gmm``,
 ``vanilla_cvae``, ``lstm``), ``{fraction}`` (:func:`fraction_label`, e.g. ``0.1``), ``{sampler}`` (one of
-:data:`amorgs.models.samplers.SAMPLER_NAMES`) and ``{name}`` (a figure or table).  The Snakefile's rules
+:data:`amorgs.ablation.arms.SAMPLER_NAMES`), ``{mseed}`` (an extra model-training seed) and ``{name}`` (a figure or table).  The Snakefile's rules
 and ``amorgs check-outputs`` both take their file names from here.
 """
 
@@ -27,6 +27,9 @@ CR3BP_FRACTION_MODEL = "results/cr3bp/models/fraction={fraction}/cvae_gmm.pt"
 CR3BP_SAMPLES = "results/cr3bp/predictions/samples.parquet"
 CR3BP_PREDICTION_METRICS = "results/cr3bp/predictions/metrics.json"
 ABLATION_CELL = "results/cr3bp/ablation/alpha={alpha}/{sampler}.parquet"
+#: Models and ablation cells of the extra model-training seeds (``cr3bp_models.extra_seeds``), wildcard {mseed}.
+CR3BP_REPLICATE_MODEL = "results/cr3bp/models/seed={mseed}/{model}.pt"
+ABLATION_REPLICATE_CELL = "results/cr3bp/ablation/seed={mseed}/alpha={alpha}/{sampler}.parquet"
 ABLATION_SUMMARY = "results/cr3bp/ablation/summary.json"
 TABLE = "results/tables/{name}"
 
@@ -39,8 +42,16 @@ ANALYSIS_FIGURES = (
 )
 CR3BP_MODELS = ("cvae_gmm", "vanilla_cvae", "lstm")
 PREDICTION_FIGURES = ("fig17_time_predictions", "fig18_data_fraction", "fig19_final_mass", "fig20_control_statistics")
-ABLATION_FIGURES = ("fig21_solve_time_histograms", "fig22_capped_convergence", "fig23_amorgs_diversity")
-ABLATION_TABLES = ("table6.csv", "table6.md", "ablation_capped.csv", "ablation_coverage.csv")
+ABLATION_FIGURES = (
+    "fig21_solve_time_histograms", "fig22_capped_convergence", "fig23_amorgs_diversity",
+    "fig22_iteration_capped", "ablation_speedups", "ablation_beta_sweep", "ablation_anytime",
+)
+#: The issue-11 statistics tables, each written as <name>.csv and <name>.md (anytime: CSV only).
+ABLATION_STAT_TABLES = ("ablation_rates", "ablation_beta_sweep", "ablation_ert", "ablation_iteration_capped")
+ABLATION_TABLES = (
+    "table6.csv", "table6.md", "ablation_capped.csv", "ablation_coverage.csv",
+    *(f"{n}.{ext}" for n in ABLATION_STAT_TABLES for ext in ("csv", "md")), "ablation_anytime.csv",
+)
 
 
 def fraction_label(fraction: float) -> str:
@@ -65,12 +76,26 @@ def fraction_models(cfg: Config) -> list[str]:
 
 
 def ablation_cells(cfg: Config) -> list[str]:
-    """One table per (test α, sampler) of the ablation."""
-    return [
+    """One table per (test α, sampler) of the ablation, and one per (extra model seed, test α, sampler)."""
+    cells = [
         ABLATION_CELL.format(alpha=alpha_label(a), sampler=s)
         for a in cfg.problems.cr3bp.alphas.test
         for s in cfg.ablation.samplers
     ]
+    return cells + [
+        ABLATION_REPLICATE_CELL.format(mseed=m, alpha=alpha_label(a), sampler=s)
+        for m in cfg.cr3bp_models.extra_seeds
+        for a in cfg.problems.cr3bp.alphas.test
+        for s in cfg.ablation.samplers
+    ]
+
+
+def replicate_models(cfg: Config) -> list[str]:
+    """The checkpoints of the extra model-training seeds (only those the ablation's arms load)."""
+    from amorgs.ablation.arms import NEEDS_MODELS
+
+    needed = sorted({m for s in cfg.ablation.samplers for m in NEEDS_MODELS[s]}) if cfg.ablation.enabled else []
+    return [CR3BP_REPLICATE_MODEL.format(mseed=m, model=name) for m in cfg.cr3bp_models.extra_seeds for name in needed]
 
 
 def figure_names(cfg: Config) -> list[str]:
@@ -103,5 +128,6 @@ def targets(cfg: Config) -> list[str]:
         out += [CR3BP_SAMPLES, CR3BP_PREDICTION_METRICS]
     if cfg.ablation.enabled:
         out += ablation_cells(cfg) + [ABLATION_SUMMARY, *(TABLE.format(name=n) for n in ABLATION_TABLES)]
+        out += replicate_models(cfg)
     out += [FIGURE.format(name=n) for n in figure_names(cfg)]
     return out

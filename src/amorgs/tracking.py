@@ -81,16 +81,20 @@ def resolve_tracking_uri(configured: str | None = None, store_dir: str | Path = 
     return os.environ.get(TRACKING_URI_ENV) or configured or tracking_uri(store_dir)
 
 
-def error_status(snakemake_log: str | Path | None) -> str:
+def error_status(snakemake_log: str | Path | list | None) -> str:
     """The parent run's status for Snakemake's ``onerror``: KILLED if the user stopped the workflow, else FAILED.
 
     Snakemake logs "Terminating processes on user request" after Ctrl-C and "Will exit after finishing currently
-    running jobs" after SIGTERM; ``snakemake_log`` is the log file ``onerror`` receives.
+    running jobs" after SIGTERM; ``snakemake_log`` is what ``onerror`` receives as ``log`` (a log file or a list
+    of them).  Never raises.
     """
-    try:
-        text = Path(snakemake_log).read_text(errors="replace") if snakemake_log else ""
-    except OSError:
-        text = ""
+    paths = snakemake_log if isinstance(snakemake_log, (list, tuple)) else [snakemake_log]
+    text = ""
+    for path in paths:
+        try:
+            text += Path(path).read_text(errors="replace") if path else ""
+        except (OSError, TypeError):
+            pass
     user_stop = ("Terminating processes on user request", "Will exit after finishing currently running jobs")
     return "KILLED" if any(marker in text for marker in user_stop) else "FAILED"
 
@@ -333,9 +337,13 @@ class JobRun:
         if self._client is None:
             return
         try:
+            import warnings
+
             import mlflow.data
 
-            ds = mlflow.data.from_pandas(df, source=Path(path).resolve().as_uri(), name=Path(path).name)
+            with warnings.catch_warnings():  # MLflow's own notes on source resolution and pandas deprecations
+                warnings.simplefilter("ignore")
+                ds = mlflow.data.from_pandas(df, source=Path(path).resolve().as_uri(), name=Path(path).name)
             entity = DatasetInput(ds._to_mlflow_entity(), tags=[InputTag("mlflow.data.context", context)])
         except Exception as exc:  # noqa: BLE001 — tracking never fails a job
             _warn("describing a dataset", exc)

@@ -29,3 +29,62 @@ def test_uniform_cell_statistics_and_figures():
     for fig in (fig21_solve_time_histograms(cell, 0.0), fig22_capped_convergence({0.85: capped}),
                 fig23_amorgs_diversity(cell, cell[cell["converged"]], 0.0, sampler="uniform")):
         assert fig.axes
+
+
+def _library_high_quality(beta_kg: float = 415.0):
+    """The committed library's verified, m_f ≥ β rows (a real, small high-quality table)."""
+    import glob
+
+    import pandas as pd
+
+    files = sorted(glob.glob("data/library/cr3bp/alpha=*/*.parquet"))
+    if not files:
+        pytest.skip("no committed CR3BP library")
+    df = pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+    return df[df["converged"].astype(bool) & (df["m_f"] >= beta_kg)].reset_index(drop=True)
+
+
+def test_iteration_cap_equals_a_real_capped_resolve():
+    """The post-hoc iteration cap of statistics.iteration_capped equals re-solving under max_iter = cap:
+    IPOPT is deterministic, so a start converging in k iterations converges identically under a cap of k and
+    is stopped (not converged) under a cap below k."""
+    from amorgs.ablation.statistics import iteration_capped
+    from amorgs.models.samplers import NearestAlphaSampler
+    from amorgs.solvers.multistart import solve_guesses
+
+    problem = get_problem("cr3bp")
+    hq = _library_high_quality()
+    guess = NearestAlphaSampler(problem, hq, (0.8, 0.9)).sample(0.85, 1, np.random.default_rng(0))
+    opts = {"max_iter": 1000, "max_wall_s": 120.0}
+    (full,), _ = solve_guesses("cr3bp", 0.85, guess, 1, opts, progress=False)
+    assert full.converged, full.status
+    k = int(full.iterations)
+    assert k > 4
+    (same,), _ = solve_guesses("cr3bp", 0.85, guess, 1, {**opts, "max_iter": k}, progress=False)
+    assert same.converged and int(same.iterations) == k
+    np.testing.assert_allclose(same.x, full.x, rtol=1e-9, atol=1e-9)
+    (cut,), _ = solve_guesses("cr3bp", 0.85, guess, 1, {**opts, "max_iter": k // 2}, progress=False)
+    assert not cut.converged and int(cut.iterations) == k // 2
+    import pandas as pd
+
+    row = pd.DataFrame({"alpha": [0.85], "sampler": ["nearest_alpha"], "converged": [True], "m_f": [full.x[3]],
+                        "iterations": [k], "cpu_s": [full.cpu_s]})
+    t = iteration_capped(row, 0.0, caps=[k // 2, k]).set_index("cap_iterations")
+    assert t.loc[k // 2, "k_within_cap"] == int(cut.converged) == 0
+    assert t.loc[k, "k_within_cap"] == int(same.converged) == 1
+    assert t.loc[k // 2, "iterations_spent"] == k // 2
+
+
+def test_reuse_baseline_cells_on_library_data():
+    """nearest_alpha and its perturbed variant on the committed library: real solves, seeded, valid."""
+    from amorgs.models.samplers import NearestAlphaPerturbedSampler, NearestAlphaSampler
+
+    problem = get_problem("cr3bp")
+    hq = _library_high_quality()
+    train = (0.1, 0.13, 0.16, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
+    for sampler in (NearestAlphaSampler(problem, hq, train), NearestAlphaPerturbedSampler(problem, hq, train, 0.02)):
+        cell = run_cell("cr3bp", 0.85, sampler, n=2, seed=3, solver_options={"max_iter": 300, "max_wall_s": 60.0},
+                        workers=2, progress=False)
+        assert list(cell["sampler"].unique()) == [sampler.name] and len(cell) == 2
+        again = sampler.sample(0.85, 2, np.random.default_rng(3))
+        np.testing.assert_array_equal(cell[[f"guess_{v}" for v in problem.variable_names]].to_numpy(), again)

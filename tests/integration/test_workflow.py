@@ -52,9 +52,10 @@ def test_lint_is_clean():
     assert "Congratulations, your workflow is in a good condition" in res.stdout + res.stderr
 
 
-def test_slurm_profile_dry_run(tmp_path):
+@pytest.mark.parametrize("flag", ["--workflow-profile", "--profile"])
+def test_slurm_profile_dry_run(tmp_path, flag):
     wd = workdir(tmp_path)
-    res = snakemake(wd, "-n", "--profile", "workflow/profiles/slurm", "--configfile", "config/paper.yaml")
+    res = snakemake(wd, "-n", flag, "workflow/profiles/slurm", "--configfile", "config/paper.yaml")
     out = res.stdout + res.stderr
     assert res.returncode == 0, out
     for rule in ("generate", "filter", "train_dejong_cvae", "analyze_cr3bp", "train_cr3bp", "train_cr3bp_fraction",
@@ -263,3 +264,71 @@ def test_boundary_conditions_check(tmp_path):
     (tmp_path / "bc.json").write_text(json.dumps(bad))
     res = subprocess.run([*amorgs, str(tmp_path / "bc.json")], capture_output=True, text=True, env=ENV)
     assert res.returncode != 0 and "mu:" in res.stderr
+
+
+def _runs(wd: Path, experiment: str) -> dict[str, list]:
+    """Workflow (parent) and job runs of ``experiment`` in the work directory's SQLite store."""
+    from mlflow.tracking import MlflowClient
+
+    client = MlflowClient(f"sqlite:///{wd / 'results' / 'mlflow' / 'mlflow.db'}")
+    exp = client.get_experiment_by_name(experiment)
+    if exp is None:
+        return {"workflow": [], "job": []}
+    return {kind: client.search_runs([exp.experiment_id], f"tags.kind = '{kind}'") for kind in ("workflow", "job")}
+
+
+@pytest.mark.slow
+def test_plain_snakemake_runs_with_the_profile_and_a_lost_store_is_reported(tmp_path):
+    """`snakemake` alone (no --profile, no --cores) runs; outputs are group-readable; a deleted store is named."""
+    cfg = _interrupt_config()
+    wd = workdir(tmp_path, cfg)
+    old = os.umask(0o022)
+    try:
+        res = snakemake(wd, "--configfile", "config/test.yaml")
+    finally:
+        os.umask(old)
+    out = res.stdout + res.stderr
+    assert res.returncode == 0, out[-5000:]
+    assert "workflow specific profile workflow/profiles/default" in out
+    outputs = [p for p in (wd / "results").rglob("*") if p.is_file() and "mlflow" not in p.parts]
+    assert any(p.suffix == ".png" for p in outputs) and any(p.suffix == ".parquet" for p in outputs)
+    for p in outputs:
+        assert p.stat().st_mode & 0o777 == 0o644, p
+
+    check = [sys.executable, "-m", "amorgs", "check-outputs", "--config", "config/test.yaml"]
+    res = subprocess.run(check, cwd=wd, capture_output=True, text=True, env=ENV)
+    assert res.returncode == 0, res.stdout + res.stderr
+
+    shutil.rmtree(wd / "results" / "mlflow")
+    res = snakemake(wd, "--configfile", "config/test.yaml")
+    assert res.returncode == 0 and "Nothing to be done" in res.stdout + res.stderr
+    res = subprocess.run(check, cwd=wd, capture_output=True, text=True, env=ENV)
+    assert res.returncode == 3, res.stdout + res.stderr
+    assert "untracked" in res.stderr and "--no-mlflow" in res.stderr
+    res = subprocess.run([*check, "--no-mlflow"], cwd=wd, capture_output=True, text=True, env=ENV)
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
+@pytest.mark.slow
+def test_ctrl_c_ends_the_workflow_and_job_runs_killed(tmp_path):
+    cfg = _interrupt_config()
+    cfg["problems"]["dejong"]["generate"].update(shards=1, starts_per_shard=50000)  # minutes of work
+    wd = workdir(tmp_path, cfg)
+    proc = subprocess.Popen(
+        [SNAKEMAKE, "results/dejong/high_quality.parquet", "--configfile", "config/test.yaml"],
+        cwd=wd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True, env=ENV,
+    )
+    deadline = time.monotonic() + 300
+    invocation = wd / "results" / "mlflow" / "invocation.json"  # written once the store is created and migrated
+    while not invocation.exists() or not any(
+        r.info.status == "RUNNING" for r in _runs(wd, cfg["mlflow"]["experiment"])["job"]
+    ):
+        assert proc.poll() is None, "the workflow ended before its job started"
+        assert time.monotonic() < deadline, "no job run appeared"
+        time.sleep(0.5)
+    os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in a terminal: Snakemake and its jobs
+    assert proc.wait(timeout=120) != 0
+    runs = _runs(wd, cfg["mlflow"]["experiment"])
+    assert [r.info.status for r in runs["workflow"]] == ["KILLED"]
+    assert [r.info.status for r in runs["job"]] == ["KILLED"]
+    assert not (wd / "results" / "dejong" / "high_quality.parquet").exists()

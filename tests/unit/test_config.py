@@ -92,6 +92,23 @@ def test_colliding_alpha_labels_are_rejected(tmp_path):
         C.load_config(write(tmp_path, mapping), SCHEMA)
 
 
+@pytest.mark.parametrize("problem,alpha", [("cr3bp", 0.05), ("cr3bp", 1.2), ("dejong", 2.0)])
+def test_alpha_outside_the_problem_range_is_rejected_before_any_job(tmp_path, problem, alpha):
+    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    mapping["problems"][problem]["alphas"]["test"] = [alpha]
+    with pytest.raises(C.ConfigError, match=rf"bad\.yaml: problems\.{problem}\.alphas: α = {alpha} lies outside"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+
+
+def test_library_slice_must_be_positive_or_null(tmp_path):
+    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    mapping["problems"]["cr3bp"]["library"]["max_rows_per_alpha"] = 0
+    with pytest.raises(C.ConfigError, match=r"problems\.cr3bp\.library\.max_rows_per_alpha: 0 is less than the minimum of 1"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+    mapping["problems"]["cr3bp"]["library"]["max_rows_per_alpha"] = None
+    assert C.load_config(write(tmp_path, mapping), SCHEMA).problems.cr3bp.library.max_rows_per_alpha is None
+
+
 def test_cvae_needs_dejong(tmp_path):
     mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
     mapping["problems"]["dejong"]["enabled"] = False

@@ -1,11 +1,50 @@
-# Stage 5, ablation (paper Sec. V.B.7–8): per (test α, sampler) one job solving guesses from that sampler with
-# the CR3BP solver options; then Table 6, the capped study, hyperplane coverage and Figs. 21–23.
+# Stage 5, ablation (paper Sec. V.B.7–8, issue 11): per (test α, sampler) one job solving guesses from that
+# sampler with the CR3BP solver options — once with the models of cr3bp_models.seed, and once more per
+# cr3bp_models.extra_seeds (replicates: their own models, their own cell seed); then Table 6, the capped
+# studies, coverage, rates + Fisher tests, the β sweep, expected running time, anytime curves and figures.
+from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS
+
+
+def ablation_cell_inputs(wildcards, model_template=layout.CR3BP_MODEL):
+    """The checkpoints the {sampler} loads (none for uniform / nearest_alpha*) and, for the reuse baselines,
+    the filtered high-quality table (they draw from its training-α rows)."""
+    fmt = dict(wildcards.items())
+    inputs = {"models": [model_template.format(**{**fmt, "model": m}) for m in NEEDS_MODELS[wildcards.sampler]]}
+    if wildcards.sampler in NEEDS_HIGH_QUALITY:
+        inputs["high_quality"] = layout.HIGH_QUALITY.format(problem="cr3bp")
+    return inputs
+
+
+def ablation_cell_args(wildcards, input):
+    """The sampler-specific arguments of `amorgs ablation-cell`."""
+    args = []
+    if len(input.get("models", [])):
+        args.append(f"--models-dir {os.path.dirname(input.models[0])}")
+    if "high_quality" in input.keys():
+        a = CFG.ablation
+        args.append(
+            f"--high-quality {input.high_quality} --train-alphas {floats(CFG.problems.cr3bp.alphas.train_values())} "
+            f"--perturbation-scale {a.perturbation_scale!r} --gmm-components {a.gmm_components}"
+        )
+    return " ".join(args)
+
+
+def seed_of_replicate_cell(wildcards):
+    """The seed of one replicate cell: as seed_of_cell, with the model seed mixed into the sampler's name."""
+    alpha = CFG.problems.cr3bp.alpha_values()[wildcards.alpha]
+    return cell_seed(CFG.ablation.seed, "cr3bp", alpha, f"{wildcards.sampler}@seed={wildcards.mseed}")
+
+
+ABLATION_CELL_SHELL = (
+    "python -m amorgs ablation-cell --alpha {params.alpha} --sampler {wildcards.sampler} {params.args} "
+    "--model-seed {params.model_seed} {params.replicate} --starts {params.starts} --seed {params.seed} --workers {threads} "
+    "--solver-options {params.solver:q} --output {output} > {log} 2>&1"
+)
 
 
 rule ablation_cell:
     input:
-        # the uniform sampler needs no model; the learned ones load theirs from models_dir
-        lambda w: [] if w.sampler == "uniform" else [layout.CR3BP_MODEL.format(model=m) for m in layout.CR3BP_MODELS],
+        unpack(ablation_cell_inputs),
     output:
         layout.ABLATION_CELL,
     log:
@@ -13,9 +52,11 @@ rule ablation_cell:
     params:
         alpha=lambda w: CFG.problems.cr3bp.alpha_values()[w.alpha],
         seed=seed_of_cell,
+        model_seed=CFG.cr3bp_models.seed,
+        replicate="",
         starts=CFG.ablation.n_starts,
         solver=json.dumps(CFG.problems.cr3bp.solver_options(), sort_keys=True),
-        models=lambda w, input: f"--models-dir {os.path.dirname(input[0])}" if len(input) else "",
+        args=ablation_cell_args,
     threads: CFG.ablation.workers
     resources:
         mem_mb=CFG.ablation.mem_mb,
@@ -23,9 +64,57 @@ rule ablation_cell:
     conda:
         "../envs/amorgs.yaml"
     shell:
-        "python -m amorgs ablation-cell --alpha {params.alpha} --sampler {wildcards.sampler} "
-        "{params.models} --starts {params.starts} --seed {params.seed} --workers {threads} "
-        "--solver-options {params.solver:q} --output {output} > {log} 2>&1"
+        ABLATION_CELL_SHELL
+
+
+rule train_cr3bp_replicate:
+    # the models of one extra training seed: train_cr3bp's settings with --seed replaced (argparse keeps the last)
+    input:
+        layout.HIGH_QUALITY.format(problem="cr3bp"),
+    output:
+        layout.CR3BP_REPLICATE_MODEL,
+    wildcard_constraints:
+        mseed=r"\d+",
+    log:
+        "logs/train_cr3bp/seed={mseed}/{model}.log",
+    params:
+        training=train_cr3bp_params(),
+    threads: CFG.resources.train.threads
+    resources:
+        mem_mb=CFG.resources.train.mem_mb,
+        runtime=CFG.resources.train.runtime_min,
+    conda:
+        "../envs/amorgs.yaml"
+    shell:
+        "python -m amorgs train-cr3bp --data {input} --model {wildcards.model} {params.training} "
+        "--seed {wildcards.mseed} --threads {threads} --output {output} > {log} 2>&1"
+
+
+rule ablation_cell_replicate:
+    input:
+        unpack(lambda w: ablation_cell_inputs(w, layout.CR3BP_REPLICATE_MODEL)),
+    output:
+        layout.ABLATION_REPLICATE_CELL,
+    wildcard_constraints:
+        mseed=r"\d+",
+    log:
+        "logs/ablation_cell/seed={mseed}/alpha={alpha}/{sampler}.log",
+    params:
+        alpha=lambda w: CFG.problems.cr3bp.alpha_values()[w.alpha],
+        seed=seed_of_replicate_cell,
+        model_seed=lambda w: int(w.mseed),
+        replicate="--replicate",
+        starts=CFG.ablation.n_starts,
+        solver=json.dumps(CFG.problems.cr3bp.solver_options(), sort_keys=True),
+        args=ablation_cell_args,
+    threads: CFG.ablation.workers
+    resources:
+        mem_mb=CFG.ablation.mem_mb,
+        runtime=CFG.ablation.runtime_min,
+    conda:
+        "../envs/amorgs.yaml"
+    shell:
+        ABLATION_CELL_SHELL
 
 
 rule ablation_report:
@@ -38,6 +127,8 @@ rule ablation_report:
         table6_md=layout.TABLE.format(name="table6.md"),
         capped=layout.TABLE.format(name="ablation_capped.csv"),
         coverage=layout.TABLE.format(name="ablation_coverage.csv"),
+        stat_tables=[layout.TABLE.format(name=n) for n in layout.ABLATION_TABLES if n.startswith("ablation_")
+                     and n not in ("ablation_capped.csv", "ablation_coverage.csv")],
         figures=[
             report(layout.FIGURE.format(name=n), caption="../report/ablation.rst", category="CR3BP ablation")
             for n in layout.ABLATION_FIGURES
@@ -47,6 +138,12 @@ rule ablation_report:
     params:
         beta=CFG.problems.cr3bp.filter.min_final_mass_kg,
         figures_dir=lambda w, output: os.path.dirname(output.figures[0]),
+        tables_dir=lambda w, output: os.path.dirname(output.table6_csv),
+        beta_sweep=floats(CFG.ablation.beta_sweep_kg),
+        caps=" ".join(map(str, CFG.ablation.iteration_caps)),
+        max_iter=CFG.problems.cr3bp.solver.max_iter,
+        n_boot=CFG.ablation.n_boot,
+        seed=CFG.ablation.seed,
     threads: CFG.resources.figure.threads
     resources:
         mem_mb=CFG.resources.figure.mem_mb,
@@ -57,4 +154,6 @@ rule ablation_report:
         "python -m amorgs ablation-report --cells {input.cells} --high-quality {input.high_quality} "
         "--beta {params.beta} --summary {output.summary} --table6-csv {output.table6_csv} "
         "--table6-md {output.table6_md} --capped {output.capped} --coverage {output.coverage} "
+        "--tables-dir {params.tables_dir} --beta-sweep {params.beta_sweep} --iteration-caps {params.caps} "
+        "--max-iter {params.max_iter} --n-boot {params.n_boot} --seed {params.seed} "
         "--figures-dir {params.figures_dir} > {log} 2>&1"

@@ -15,17 +15,17 @@ rule analyze_cr3bp:
         ],
     log:
         "logs/analyze_cr3bp.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: CFG.resources.analyze.threads
+    resources:
+        mem_mb=CFG.resources.analyze.mem_mb,
+        runtime=CFG.resources.analyze.runtime_min,
     params:
         beta=CFG.problems.cr3bp.filter.min_final_mass_kg,
         structure=json.dumps(CFG.cr3bp_analysis.params, sort_keys=True),
         tables_dir=lambda w, output: os.path.dirname(output.tables[0]),
         figures_dir=lambda w, output: os.path.dirname(output.figures[0]),
-    threads: CFG.resources.analyze.threads
-    resources:
-        mem_mb=CFG.resources.analyze.mem_mb,
-        runtime=CFG.resources.analyze.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         "python -m amorgs analyze-cr3bp --inputs {input.solutions} --high-quality {input.high_quality} "
         "--beta {params.beta} --params {params.structure:q} --metrics {output.metrics} "

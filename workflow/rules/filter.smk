@@ -9,14 +9,14 @@ rule filter:
         report=layout.QUALITY_REPORT,
     log:
         "logs/filter/{problem}.log",
-    params:
-        thresholds=filter_arguments,
+    conda:
+        "../envs/amorgs.yaml"
     threads: CFG.resources.filter.threads
     resources:
         mem_mb=CFG.resources.filter.mem_mb,
         runtime=CFG.resources.filter.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
+    params:
+        thresholds=filter_arguments,
     shell:
         "python -m amorgs filter --problem {wildcards.problem} --inputs {input} {params.thresholds} "
         "--output {output.table} --report {output.report} > {log} 2>&1"

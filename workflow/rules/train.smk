@@ -9,6 +9,12 @@ rule train_dejong_cvae:
         layout.DEJONG_MODEL,
     log:
         "logs/train_dejong_cvae.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: CFG.resources.train.threads
+    resources:
+        mem_mb=CFG.resources.train.mem_mb,
+        runtime=CFG.resources.train.runtime_min,
     params:
         train_alphas=" ".join(map(repr, CFG.problems.dejong.alphas.train_values())),
         preset=CFG.dejong_cvae.preset,
@@ -16,12 +22,6 @@ rule train_dejong_cvae:
         epochs=CFG.dejong_cvae.epochs,
         batch_size=CFG.dejong_cvae.batch_size,
         seed=CFG.dejong_cvae.seed,
-    threads: CFG.resources.train.threads
-    resources:
-        mem_mb=CFG.resources.train.mem_mb,
-        runtime=CFG.resources.train.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         "python -m amorgs train-dejong-cvae --data {input} --train-alphas {params.train_alphas} "
         "--preset {params.preset} --learning-rate {params.lr} --epochs {params.epochs} "
@@ -36,17 +36,17 @@ rule predict_dejong_cvae:
         metrics=layout.DEJONG_METRICS,
     log:
         "logs/predict_dejong_cvae.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: CFG.resources.predict.threads
+    resources:
+        mem_mb=CFG.resources.predict.mem_mb,
+        runtime=CFG.resources.predict.runtime_min,
     params:
         test_alphas=" ".join(map(repr, CFG.problems.dejong.alphas.test)),
         n_samples=CFG.dejong_cvae.n_samples,
         seed=CFG.dejong_cvae.seed,
         radius=CFG.dejong_cvae.radius,
-    threads: CFG.resources.predict.threads
-    resources:
-        mem_mb=CFG.resources.predict.mem_mb,
-        runtime=CFG.resources.predict.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         "python -m amorgs predict-dejong-cvae --model {input} --test-alphas {params.test_alphas} "
         "--n-samples {params.n_samples} --seed {params.seed} --radius {params.radius} "
@@ -64,14 +64,14 @@ rule train_cr3bp:
         layout.CR3BP_MODEL,
     log:
         "logs/train_cr3bp/{model}.log",
-    params:
-        training=train_cr3bp_params(),
+    conda:
+        "../envs/amorgs.yaml"
     threads: CFG.resources.train.threads
     resources:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
+    params:
+        training=train_cr3bp_params(),
     shell:
         "python -m amorgs train-cr3bp --data {input} --model {wildcards.model} {params.training} "
         "--threads {threads} --output {output} > {log} 2>&1"
@@ -84,14 +84,14 @@ rule train_cr3bp_fraction:
         layout.CR3BP_FRACTION_MODEL,
     log:
         "logs/train_cr3bp/fraction={fraction}/cvae_gmm.log",
-    params:
-        training=train_cr3bp_params(),
+    conda:
+        "../envs/amorgs.yaml"
     threads: CFG.resources.train.threads
     resources:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
+    params:
+        training=train_cr3bp_params(),
     shell:
         "python -m amorgs train-cr3bp --data {input} --model cvae_gmm --fraction {wildcards.fraction} "
         "--fraction-label {wildcards.fraction} {params.training} --threads {threads} --output {output} > {log} 2>&1"
@@ -106,11 +106,19 @@ rule predict_cr3bp:
         samples=layout.CR3BP_SAMPLES,
         metrics=layout.CR3BP_PREDICTION_METRICS,
         figures=[
-            report(layout.FIGURE.format(name=n), caption="../report/cr3bp_predictions.rst", category="CR3BP predictions")
+            report(
+                layout.FIGURE.format(name=n), caption="../report/cr3bp_predictions.rst", category="CR3BP predictions"
+            )
             for n in layout.PREDICTION_FIGURES
         ],
     log:
         "logs/predict_cr3bp.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: CFG.resources.predict.threads
+    resources:
+        mem_mb=CFG.resources.predict.mem_mb,
+        runtime=CFG.resources.predict.runtime_min,
     params:
         models_dir=lambda w, input: os.path.dirname(input.models[0]),
         # FRACTION=PATH, the fraction read back from the folder name fraction={f}
@@ -121,12 +129,6 @@ rule predict_cr3bp:
         n_samples=CFG.cr3bp_models.n_samples,
         seed=CFG.cr3bp_models.seed,
         figures_dir=lambda w, output: os.path.dirname(output.figures[0]),
-    threads: CFG.resources.predict.threads
-    resources:
-        mem_mb=CFG.resources.predict.mem_mb,
-        runtime=CFG.resources.predict.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         "python -m amorgs predict-cr3bp --models-dir {params.models_dir} --fraction-models {params.fraction_models} "
         "--high-quality {input.high_quality} --test-alphas {params.test_alphas} --n-samples {params.n_samples} "

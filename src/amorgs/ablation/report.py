@@ -128,9 +128,8 @@ def summarize(
         "ablation_speedups": ablation_speedups(ert),
         "ablation_beta_sweep": ablation_beta_sweep(sweep),
         "ablation_anytime": ablation_anytime(curves),
+        "fig22_iteration_capped": fig22_iteration_capped(capped_it),
     }
-    if len(capped_it):
-        figures["fig22_iteration_capped"] = fig22_iteration_capped(capped_it)
     metrics = {_key(k): float(v) for k, v in metrics.items() if v is not None and not math.isnan(float(v))}
     return metrics, tables, figures
 

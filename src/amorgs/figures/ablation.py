@@ -136,6 +136,11 @@ def ablation_speedups(ert: pd.DataFrame) -> Figure:
 def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
     """Fig. 22 done with a fixed iteration cap: per α (columns), the paper's ratio of percentages (top) and
     the throughput ratio (bottom), arm ÷ uniform, as a function of the cap."""
+    if capped.empty:
+        fig, ax = plt.subplots(figsize=(5, 3))
+        ax.text(0.5, 0.5, "no iteration caps configured (ablation.iteration_caps)", ha="center", va="center")
+        ax.set_axis_off()
+        return fig
     alphas = sorted(capped["alpha"].unique())
     fig, axes = plt.subplots(2, len(alphas), figsize=(5 * len(alphas), 7), squeeze=False, sharex=True)
     for j, alpha in enumerate(alphas):

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import importlib
+import math
 
 from amorgs.problems.base import LocalSolver, Problem, SolveRecord
 
 PROBLEMS = ("dejong", "cr3bp")
+#: The α each built-in family is defined for (inclusive): De Jong's rotation angle in rad, the CR3BP's
+#: maximum thrust in N.  The config check rejects any α outside before the first job starts.
+ALPHA_RANGES = {"dejong": (0.0, math.pi / 2), "cr3bp": (0.1, 1.0)}
 
 
 def get_problem(name: str) -> Problem:
@@ -33,4 +37,4 @@ def get_problem(name: str) -> Problem:
     raise ValueError(f"unknown problem {name!r}; choose one of {PROBLEMS}")
 
 
-__all__ = ["PROBLEMS", "LocalSolver", "Problem", "SolveRecord", "get_problem"]
+__all__ = ["ALPHA_RANGES", "PROBLEMS", "LocalSolver", "Problem", "SolveRecord", "get_problem"]

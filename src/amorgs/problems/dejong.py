@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
+from amorgs.problems import ALPHA_RANGES
 from amorgs.problems.base import SolveRecord, check_alpha, check_vector
 
 #: Eq. 38: eight holes in two clusters of four (columns are (x₁, x₂) at α = 0).
@@ -116,7 +117,7 @@ class DeJong5:
     variable_names: tuple[str, ...] = ("x1", "x2")
     lower = np.array([-50.0, -50.0])
     upper = np.array([50.0, 50.0])
-    alpha_range = (0.0, math.pi / 2)
+    alpha_range = ALPHA_RANGES["dejong"]
 
     def sample_uniform(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` initial guesses uniform in the box, shape (n, 2); the box does not depend on α."""

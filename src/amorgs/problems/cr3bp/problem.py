@@ -236,6 +236,8 @@ class IpoptSolver:
         self.options_hash = options.digest()
         self.build_s = 0.0
         self._built: dict[TranscriptionOptions, tuple] = {}
+        self._monitors: dict[TranscriptionOptions, _Monitor] = {}
+        self.last_trace: list[float] = []  # max|g| per IPOPT iteration of the latest solve
         self._ipopt = {
             "max_iter": options.max_iter,
             "max_wall_time": options.max_wall_s,
@@ -261,7 +263,10 @@ class IpoptSolver:
         if tr_opts not in self._built:
             t0 = time.perf_counter()
             tr = ForwardBackwardTranscription(self.problem.initial_state, self.problem.terminal_state, tr_opts)
-            opts = {"ipopt": self._ipopt, "print_time": False, "error_on_fail": False}
+            o = self.options
+            monitor = _Monitor(tr.n_w, tr.n_g, 1, o.stall_window, o.stall_factor, o.stall_floor)
+            opts = {"ipopt": self._ipopt, "print_time": False, "error_on_fail": False,
+                    "iteration_callback": monitor}
             mode = self.options.compile
             if mode == "cache":
                 library = compiled_nlp_library(tr, self.options.hessian, self.problem)
@@ -279,6 +284,7 @@ class IpoptSolver:
                     os.chdir(cwd)
             else:
                 nlpsol = ca.nlpsol("cr3bp", "ipopt", tr.nlp, opts)
+            self._monitors[tr_opts] = monitor
             self._built[tr_opts] = (tr, nlpsol, *tr.bounds())
             self.build_s += time.perf_counter() - t0
         return self._built[tr_opts]
@@ -290,6 +296,8 @@ class IpoptSolver:
         x0 = p.check_guess(x0)
         tr, nlpsol, lbw, ubw = self._nlp(alpha)
         w0 = tr.to_internal(x0, alpha)
+        monitor = self._monitors[self.options.transcription.for_alpha(alpha)]
+        monitor.reset()
         wall0, cpu0 = time.perf_counter(), time.process_time()
         try:
             sol = nlpsol(x0=w0, p=alpha, lbx=lbw, ubx=ubw, lbg=0.0, ubg=0.0)
@@ -301,6 +309,9 @@ class IpoptSolver:
             )
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         status = str(stats.get("return_status", "unknown"))
+        self.last_trace = list(monitor.trace)
+        if monitor.stopped_at is not None and status == "User_Requested_Stop":
+            status = "aborted_stalled"
         w = np.asarray(sol["x"]).ravel()
         defect = float(np.max(np.abs(np.asarray(sol["g"]).ravel()))) if np.all(np.isfinite(w)) else math.inf
         x = tr.to_stored(w)

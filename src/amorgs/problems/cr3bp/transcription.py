@@ -142,6 +142,7 @@ class ForwardBackwardTranscription:
         self.xi0 = np.asarray(initial_state, float).copy()
         self.xi0[6] /= 1000.0
         self.xif = np.asarray(terminal_state, float)[:6].copy()
+        self.m0_kg = float(np.asarray(initial_state, float)[6])
         self.m0_t = float(self.xi0[6])
         rhs = _rhs_sx()
         step = _rk8_step(rhs)
@@ -250,9 +251,15 @@ class ForwardBackwardTranscription:
         return np.concatenate([core, nodes])
 
     def to_stored(self, w: np.ndarray) -> np.ndarray:
-        """w → stored 64-vector: m_f in kg, θ wrapped to [0, 2π), φ and ρ clipped to their bounds."""
+        """w → stored 64-vector: m_f in kg, θ wrapped to [0, 2π), τ_s/τ_i/τ_f, m_f, φ and ρ clipped to their bounds.
+
+        IPOPT may return values a few 1e-9 outside the box (its bound relaxation); clipping keeps every
+        stored solution a valid warm start for ``check_guess``.
+        """
         x = np.asarray(w, float)[:CORE_SIZE].copy()
-        x[3] *= 1000.0
+        lo, hi = self.bounds()
+        x[:3] = np.clip(x[:3], lo[:3], hi[:3])
+        x[3] = min(max(x[3] * 1000.0, 0.0), self.m0_kg)
         x[4::3] = np.mod(x[4::3], 2 * math.pi)
         x[5::3] = np.clip(x[5::3], -math.pi / 2, math.pi / 2)
         x[6::3] = np.clip(x[6::3], 0.0, 1.0)

@@ -1,0 +1,244 @@
+"""amorgs.tracking against real MLflow: datasets, logged models, killed runs, the tracking URI, a lost store.
+
+Every test works on its own store under ``tmp_path`` (a real SQLite database, or a real ``mlflow server`` on
+127.0.0.1 for the URI tests); killed jobs are real processes stopped by real signals.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import textwrap
+import time
+import urllib.request
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from mlflow.tracking import MlflowClient
+
+from amorgs import tracking
+
+ROOT = Path(__file__).resolve().parents[2]
+ENV = {k: v for k, v in os.environ.items() if k not in ("PYTEST_CURRENT_TEST", tracking.TRACKING_URI_ENV)}
+CONFIG = {"seed": 1, "mlflow": {"enabled": True, "experiment": "t", "tracking_uri": None}}
+
+
+@pytest.fixture(autouse=True)
+def no_uri_from_the_environment(monkeypatch):
+    monkeypatch.delenv(tracking.TRACKING_URI_ENV, raising=False)
+
+
+def start(store: Path, uri: str | None = None, config: dict = CONFIG) -> str:
+    run_id = tracking.start_invocation(config, "abc123", config["mlflow"]["experiment"], ["config/x.yaml"], store, uri=uri)
+    assert run_id is not None
+    return run_id
+
+
+def children(client: MlflowClient, parent: str):
+    exp = client.get_run(parent).info.experiment_id
+    return client.search_runs([exp], filter_string=f"tags.mlflow.parentRunId = '{parent}'")
+
+
+def test_job_logs_datasets_and_a_logged_model_with_linked_metrics(tmp_path):
+    store = tmp_path / "mlflow"
+    parent = start(store)
+    table = pd.DataFrame({"alpha": [0.1, 0.2, 0.3], "m_f": [420.0, 418.0, 430.0]})
+    table.to_parquet(tmp_path / "high_quality.parquet")
+    (tmp_path / "model.pt").write_bytes(b"checkpoint")
+    with tracking.job_run("train_cr3bp", {"model": "lstm"}, store) as run:
+        run.log_dataset(table, tmp_path / "high_quality.parquet", "training")
+        run.log_dataset(table.head(1), tmp_path / "high_quality.parquet", "evaluation")
+        run.start_model("lstm", {"epochs": 3})
+        for epoch in (1, 2, 3):
+            run.log_metrics({"loss": 1.0 / epoch}, step=epoch)
+        run.finish_model(tmp_path / "model.pt", step=3)
+    tracking.finish_invocation("FINISHED", store)
+
+    client = MlflowClient(tracking.tracking_uri(store))
+    (job,) = children(client, parent)
+    assert job.info.status == "FINISHED"
+    inputs = {
+        {t.key: t.value for t in d.tags}["mlflow.data.context"]: d.dataset for d in job.inputs.dataset_inputs
+    }
+    assert set(inputs) == {"training", "evaluation"}
+    assert inputs["training"].name == "high_quality.parquet"
+    assert '"num_rows": 3' in inputs["training"].profile and "m_f" in inputs["training"].schema
+    assert (tmp_path / "high_quality.parquet").as_uri() in inputs["training"].source
+    assert inputs["training"].digest != inputs["evaluation"].digest
+
+    (output,) = job.outputs.model_outputs
+    assert output.step == 3
+    model = client.get_logged_model(output.model_id)
+    assert model.name == "lstm" and str(model.status).endswith("READY")
+    assert model.source_run_id == job.info.run_id and model.params["epochs"] == "3"
+    linked = {(m.key, m.step): m for m in model.metrics}
+    assert linked[("loss", 3)].value == pytest.approx(1 / 3)
+    assert linked[("loss", 3)].dataset_name == "high_quality.parquet"
+    assert linked[("loss", 3)].dataset_digest == inputs["training"].digest
+    history = client.get_metric_history(job.info.run_id, "loss")
+    assert [m.step for m in history] == [1, 2, 3]  # the run keeps its own history as well
+    files = [a.path for a in client.list_logged_model_artifacts(output.model_id)]
+    assert files == ["model.pt"]
+    assert [a.path for a in client.list_artifacts(job.info.run_id, "models")] == ["models/model.pt"]
+
+
+JOB = textwrap.dedent(
+    """
+    import sys, time
+    from amorgs import tracking
+    with tracking.job_run("train_cr3bp", {"model": "lstm"}, sys.argv[1]) as run:
+        run.start_model("lstm")
+        print("ready", flush=True)
+        time.sleep(120)
+    """
+)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_killed_job_ends_its_run_killed(tmp_path, sig):
+    store = tmp_path / "mlflow"
+    parent = start(store)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", JOB, str(store)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV
+    )
+    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    proc.send_signal(sig)
+    proc.wait(timeout=60)
+    assert proc.returncode != 0
+    if sig == signal.SIGTERM:
+        assert proc.returncode == 128 + signal.SIGTERM
+    client = MlflowClient(tracking.tracking_uri(store))
+    (job,) = children(client, parent)
+    assert job.info.status == "KILLED"
+    models = client.search_logged_models([job.info.experiment_id])
+    assert [str(m.status) for m in models] == [str(models[0].status)] and "FAILED" in str(models[0].status)
+
+
+def test_the_next_invocation_closes_runs_left_running_by_kill_9(tmp_path):
+    store = tmp_path / "mlflow"
+    parent = start(store)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", JOB, str(store)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV
+    )
+    assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
+    proc.kill()  # SIGKILL: nothing in the job can react
+    proc.wait(timeout=60)
+    client = MlflowClient(tracking.tracking_uri(store))
+    assert [r.info.status for r in children(client, parent)] == ["RUNNING"]
+    second = start(store)
+    assert client.get_run(parent).info.status == "KILLED"
+    assert [r.info.status for r in children(client, parent)] == ["KILLED"]
+    assert client.get_run(second).info.status == "RUNNING"
+
+
+def test_error_status_tells_a_user_stop_from_a_failure(tmp_path):
+    log = tmp_path / "snakemake.log"
+    log.write_text("Error in rule generate:\n  jobid: 3\n")
+    assert tracking.error_status(log) == "FAILED"
+    log.write_text("...\nTerminating processes on user request, this might take some time.\n")
+    assert tracking.error_status(log) == "KILLED"
+    log.write_text("Will exit after finishing currently running jobs (scheduler).\n")
+    assert tracking.error_status(log) == "KILLED"
+    assert tracking.error_status(None) == "FAILED" and tracking.error_status(tmp_path / "missing.log") == "FAILED"
+    assert tracking.error_status([str(tmp_path / "missing.log"), str(log)]) == "KILLED"  # Snakemake passes a list
+    assert tracking.error_status([]) == "FAILED" and tracking.error_status(3) == "FAILED"
+
+
+def test_resolve_tracking_uri_order(tmp_path, monkeypatch):
+    local = tracking.tracking_uri(tmp_path)
+    assert local.startswith("sqlite:///") and str(tmp_path) in local
+    assert tracking.resolve_tracking_uri(None, tmp_path) == local
+    assert tracking.resolve_tracking_uri("http://h:1", tmp_path) == "http://h:1"
+    monkeypatch.setenv(tracking.TRACKING_URI_ENV, "http://env:2")
+    assert tracking.resolve_tracking_uri("http://h:1", tmp_path) == "http://env:2"
+
+
+def test_check_outputs_names_a_missing_store(tmp_path, monkeypatch):
+    from amorgs.checks import UNTRACKED, _check_tracking
+    from amorgs.config import load_config
+
+    cfg = load_config(ROOT / "config" / "smoke.yaml")
+    monkeypatch.chdir(tmp_path)  # no results/mlflow here
+    assert _check_tracking(cfg) == [UNTRACKED]
+    assert "untracked" in UNTRACKED and "--no-mlflow" in UNTRACKED
+
+
+# ------------------------------------------------------------------------------- a real MLflow server
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def mlflow_server(tmp_path):
+    """A real ``mlflow server`` on 127.0.0.1 (random free port), stopped with its process group afterwards."""
+    port = free_port()
+    url = f"http://127.0.0.1:{port}"
+    workdir = tmp_path / "server"
+    workdir.mkdir()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port), "--workers", "1",
+         "--backend-store-uri", f"sqlite:///{workdir / 'server.db'}", "--artifacts-destination", str(workdir / "artifacts")],
+        cwd=workdir, stdout=subprocess.DEVNULL, stderr=open(workdir / "server.log", "w"), start_new_session=True,
+        env={**ENV, "MLFLOW_DISABLE_TELEMETRY": "true"},
+    )
+    try:
+        deadline = time.monotonic() + 180
+        while True:
+            assert proc.poll() is None, (workdir / "server.log").read_text()[-3000:]
+            try:
+                with urllib.request.urlopen(f"{url}/health", timeout=2) as resp:
+                    if resp.status == 200:
+                        break
+            except OSError:
+                pass
+            assert time.monotonic() < deadline, "mlflow server did not answer within 180 s"
+            time.sleep(0.5)
+        yield url
+    finally:
+        os.killpg(proc.pid, signal.SIGTERM)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def _tracked_job(store: Path, tmp_path: Path) -> None:
+    (tmp_path / "fig.png").write_bytes(b"\x89PNG\r\n\x1a\n")
+    with tracking.job_run("filter", {"problem": "dejong"}, store) as run:
+        run.log_metrics({"rows": 7.0})
+        run.log_artifact(tmp_path / "fig.png", "figures")
+
+
+@pytest.mark.slow
+def test_config_and_environment_tracking_uri_reach_a_real_server(tmp_path, mlflow_server, monkeypatch):
+    # config mlflow.tracking_uri
+    store = tmp_path / "a" / "mlflow"
+    config = {**CONFIG, "mlflow": {**CONFIG["mlflow"], "tracking_uri": mlflow_server}}
+    parent = start(store, config=config)
+    _tracked_job(store, tmp_path)
+    tracking.finish_invocation("FINISHED", store)
+    assert not (store / tracking.DB_NAME).exists()  # nothing went to the local SQLite store
+    client = MlflowClient(mlflow_server)
+    assert client.get_run(parent).info.status == "FINISHED"
+    (job,) = children(client, parent)
+    assert job.data.metrics["rows"] == 7.0
+    assert [a.path for a in client.list_artifacts(job.info.run_id, "figures")] == ["figures/fig.png"]
+    assert tracking.tracked_jobs(store)["parent_status"] == "FINISHED"
+
+    # MLFLOW_TRACKING_URI wins over the config (here: a bogus address that would fail)
+    monkeypatch.setenv(tracking.TRACKING_URI_ENV, mlflow_server)
+    store = tmp_path / "b" / "mlflow"
+    config = {**CONFIG, "mlflow": {**CONFIG["mlflow"], "tracking_uri": "http://127.0.0.1:9"}}
+    parent = start(store, config=config)
+    _tracked_job(store, tmp_path)
+    tracking.finish_invocation("FINISHED", store)
+    assert client.get_run(parent).info.status == "FINISHED" and len(children(client, parent)) == 1

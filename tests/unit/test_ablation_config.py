@@ -1,0 +1,116 @@
+"""The issue-11 parts of the config: the arm registry, iteration caps, model seeds, config/study.yaml, layout."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from amorgs import config as C
+from amorgs import layout
+from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_LABELS, SAMPLER_NAMES
+
+ROOT = Path(__file__).resolve().parents[2]
+SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
+
+
+def load(name: str) -> C.Config:
+    return C.load_config(ROOT / "config" / f"{name}.yaml", SCHEMA)
+
+
+def write(tmp_path: Path, mapping: dict) -> Path:
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(mapping))
+    return path
+
+
+def test_schema_enum_is_the_registry():
+    schema = yaml.safe_load(SCHEMA.read_text())
+    enum = schema["properties"]["ablation"]["properties"]["samplers"]["items"]["enum"]
+    assert tuple(enum) == SAMPLER_NAMES
+    assert set(SAMPLER_LABELS) == set(SAMPLER_NAMES) == set(NEEDS_MODELS)
+
+
+def test_default_and_smoke_run_every_arm_small():
+    for name, starts in (("default", 24), ("smoke", 2)):
+        cfg = load(name)
+        assert set(cfg.ablation.samplers) == set(SAMPLER_NAMES) and cfg.ablation.n_starts == starts
+        assert all(c <= cfg.problems.cr3bp.solver.max_iter for c in cfg.ablation.iteration_caps)
+
+
+def test_study_config_size():
+    cfg = load("study")
+    assert set(cfg.ablation.samplers) == set(SAMPLER_NAMES)
+    assert len(cfg.cr3bp_models.seeds) >= 3 and cfg.cr3bp_models.preset == "paper"
+    assert cfg.ablation.n_starts * len(cfg.cr3bp_models.seeds) >= 200
+    cells = layout.ablation_cells(cfg)
+    assert len(cells) == len(cfg.cr3bp_models.seeds) * len(cfg.problems.cr3bp.alphas.test) * len(SAMPLER_NAMES)
+    assert "results/cr3bp/ablation/seed=12/alpha=0.150/gmm_lstm.parquet" in cells
+    models = layout.replicate_models(cfg)
+    assert "results/cr3bp/models/seed=13/lstm.pt" in models and len(models) == 2 * 3
+    targets = layout.targets(cfg)
+    assert set(models) <= set(targets)
+    assert {"results/tables/ablation_ert.md", "results/figures/ablation_anytime.png"} <= set(targets)
+
+
+def test_replicate_jobs_are_expected():
+    from amorgs.checks import expected_jobs
+
+    cfg = load("study")
+    jobs = expected_jobs(cfg)
+    rep = [w for rule, w in jobs if rule == "ablation_cell_replicate"]
+    assert len(rep) == 2 * 2 * len(SAMPLER_NAMES)
+    assert {"alpha": "0.850", "sampler": "nearest_alpha", "mseed": "13"} in rep
+
+
+def test_iteration_caps_may_not_exceed_max_iter(tmp_path):
+    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    mapping["ablation"]["iteration_caps"] = [10, 60]  # smoke max_iter = 50
+    with pytest.raises(C.ConfigError, match=r"iteration_caps \[60\] exceed problems\.cr3bp\.solver\.max_iter = 50"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+
+
+def test_baselines_without_models(tmp_path):
+    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    mapping["cr3bp_models"]["enabled"] = False
+    mapping["ablation"]["samplers"] = ["uniform", "nearest_alpha", "nearest_alpha_perturbed"]
+    cfg = C.load_config(write(tmp_path, mapping), SCHEMA)  # the reuse baselines need no model
+    assert cfg.ablation.samplers[1] == "nearest_alpha"
+    mapping["ablation"]["samplers"] = ["uniform", "gmm_lstm"]
+    with pytest.raises(C.ConfigError, match=r"\['gmm_lstm'\] need cr3bp_models\.enabled"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+    mapping["ablation"]["perturbation_scale"] = -0.1
+    with pytest.raises(C.ConfigError, match="perturbation_scale"):
+        C.load_config(write(tmp_path, mapping), SCHEMA)
+
+
+def test_figures_do_not_import_torch():
+    import subprocess
+    import sys
+
+    code = "import sys, amorgs.figures.ablation, amorgs.ablation.report; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_check_outputs_inspects_the_new_ablation_outputs(tmp_path, monkeypatch):
+    import json
+
+    import pandas as pd
+
+    from amorgs.checks import _check_file
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results/tables").mkdir(parents=True)
+    (tmp_path / "results/cr3bp/ablation").mkdir(parents=True)
+    good = "results/tables/ablation_ert.csv"
+    pd.DataFrame({"alpha": [0.15], "sampler": ["uniform"], "aRT": [1.0]}).to_csv(good, index=False)
+    assert _check_file(good) is None
+    bad = "results/tables/ablation_rates.csv"
+    pd.DataFrame({"x": [1]}).to_csv(bad, index=False)
+    assert "lacks column(s) ['alpha', 'sampler']" in _check_file(bad)
+    Path(layout.ABLATION_SUMMARY).write_text(json.dumps({"percent_hq_a0.150_uniform": 50.0}))
+    assert "aRT_iterations_" in _check_file(layout.ABLATION_SUMMARY)
+    Path(layout.ABLATION_SUMMARY).write_text(json.dumps({"aRT_iterations_a0.150_uniform": 50.0}))
+    assert _check_file(layout.ABLATION_SUMMARY) is None
