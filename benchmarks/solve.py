@@ -7,6 +7,13 @@ with the default solver options unless a variant is chosen, and prints and write
     python benchmarks/solve.py                      # the default solver, 50 starts × α ∈ {0.1, 0.5, 1.0}
     python benchmarks/solve.py --variants --starts 12   # the comparison of transcription/solver variants
     python benchmarks/solve.py --scaling            # 1 → 2 worker processes
+    python benchmarks/solve.py --compare --jobs 2   # previous default vs new default, same seed and starts
+
+``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
+the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
+abort must not shrink any band.  ``--jobs`` runs the cells (variant × α) side by side, each in its own
+single-worker process; ``--max-wall-s`` raises the wall-time safety net so that a loaded machine does not
+cut solves short (it is not part of the deterministic budget).
 
 Throughput counts solve CPU time (``time.process_time`` inside the worker), not the one-off JIT build,
 which is reported separately.  The iteration-cap table is computed from the same solves: a start that
@@ -22,6 +29,7 @@ import platform
 import re
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -31,16 +39,42 @@ from amorgs.solvers.multistart import run_multistart
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "performance.md"
-VARIANTS = {
-    "default (single shooting, L-BFGS 30, RK8 24/seg (×√(0.3/α) below 0.3) + 320/coast)": {},
-    "no α step scaling (24/seg at every α)": {"transcription": {"step_scaling_alpha": 0.0}},
-    "fewer steps (RK8 12/seg + 240/coast)": {"transcription": {"steps_per_segment": 12, "steps_per_coast": 240}},
-    "looser tolerances (tol 1e-5, acceptable 1e-3 × 5)": {"tol": 1e-5, "acceptable_tol": 1e-3, "acceptable_iter": 5},
-    "L-BFGS history 10": {"lbfgs_memory": 10},
-    "internal multiple shooting (8 coast pieces + every segment), L-BFGS": {
-        "transcription": {"multiple_shooting": True}
-    },
+#: The solver defaults before issue 9 §1 (explicit, so the comparison survives later default changes).
+PREVIOUS = {
+    "compile_flags": "-O2",
+    "stall_window": 0,
+    "transcription": {"steps_per_segment": 24, "steps_per_coast": 320, "step_scaling_alpha": 0.3,
+                      "scale_down": False},
 }
+
+
+def _with(base: dict, **changes) -> dict:
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in base.items()}
+    for key, value in changes.items():
+        if key == "transcription":
+            out["transcription"] = {**out.get("transcription", {}), **value}
+        else:
+            out[key] = value
+    return out
+
+
+#: ``--variants``: the previous default, each issue-9 change alone on top of it, and the new default ({}).
+VARIANTS = {
+    "previous default (-O2, RK8 24/seg ×√(0.3/α) below 0.3 + 320/coast, no abort)": PREVIOUS,
+    "+ compile flags -O3 -march=native -ffp-contract=off": _with(PREVIOUS, compile_flags="-O3 -march=native -ffp-contract=off"),
+    "+ stall abort": _with(PREVIOUS, stall_window=300, stall_factor=0.5),
+    "+ steps scaled down above α = 0.3": _with(PREVIOUS, transcription={"scale_down": True}),
+    "new default (flags + stall abort; steps unchanged)": {},
+}
+#: ``--compare``: the final old-vs-new table.
+COMPARE = {k: v for k, v in VARIANTS.items() if k.startswith(("previous", "new"))}
+#: Pairs (with abort, without abort) whose converged sets are compared start by start per TOF band.
+ABORT_PAIRS = {
+    "+ stall abort": "previous default (-O2, RK8 24/seg ×√(0.3/α) below 0.3 + 320/coast, no abort)",
+    # The compile flags keep results bit for bit, so the new default differs from the previous one by the abort.
+    "new default (flags + stall abort; steps unchanged)": "previous default (-O2, RK8 24/seg ×√(0.3/α) below 0.3 + 320/coast, no abort)",
+}
+TOF_BAND_TU = 6.3
 
 
 def summarize(df: pd.DataFrame) -> dict:
@@ -54,6 +88,8 @@ def summarize(df: pd.DataFrame) -> dict:
         "verified %": 100 * len(conv) / len(df),
         "solver-only %": 100 * df.solver_success.mean(),
         "failed verification": int((df.solver_success & ~df.converged).sum()),
+        "aborted": int((df.status == "aborted_stalled").sum()),
+        "CPU share of unconverged %": 100 * df.cpu_s[~df.converged].sum() / df.cpu_s.sum() if cpu_h else float("nan"),
         "wall q25/50/75 converged (s)": q(conv.wall_s),
         "wall q25/50/75 all (s)": q(df.wall_s),
         "median iters converged": float(conv.iterations.median()) if len(conv) else float("nan"),
@@ -75,6 +111,41 @@ def cap_table(df: pd.DataFrame, caps=(150, 300, 500, 750, 1000)) -> list[dict]:
         cost = np.where(df.iterations <= cap, df.cpu_s, cap * per_iter).sum()
         rows.append({"alpha": df.alpha.iloc[0], "iteration cap": cap, "verified %": 100 * ok.mean(),
                      "verified per core-hour": ok.sum() / (cost / 3600)})
+    return rows
+
+
+def tof_band(tof: pd.Series) -> pd.Series:
+    """Label of the TOF band (width ``TOF_BAND_TU``, centred on its multiples) of each TOF."""
+    k = np.round(tof / TOF_BAND_TU)
+    return k.map(lambda v: f"{(v - 0.5) * TOF_BAND_TU:.1f}–{(v + 0.5) * TOF_BAND_TU:.1f}" if np.isfinite(v) else "–")
+
+
+def abort_table(raw: pd.DataFrame) -> list[dict]:
+    """Start by start: which starts converge with and without the stall abort, per TOF band of the reference.
+
+    ``kept`` = converged in both runs; ``lost`` = converged only without the abort (band of the lost
+    solution); ``gained`` = converged only with the abort (band of the new solution).
+    """
+    rows = []
+    for with_abort, without in ABORT_PAIRS.items():
+        for alpha in sorted(raw.alpha.unique()):
+            a = raw[(raw.variant == with_abort) & (raw.alpha == alpha)].set_index("start")
+            b = raw[(raw.variant == without) & (raw.alpha == alpha)].set_index("start")
+            if a.empty or b.empty:
+                continue
+            b_band = tof_band(b.tau_s + b.tau_i + b.tau_f)
+            a_band = tof_band(a.tau_s + a.tau_i + a.tau_f)
+            bands = sorted(set(b_band[b.converged]) | set(a_band[a.converged]), key=lambda t: float(t.split("–")[0]))
+            for band in bands:
+                ref = b.converged & (b_band == band)
+                new = a.converged & (a_band == band)
+                rows.append({"alpha": alpha, "TOF band (TU)": band, "converged without abort": int(ref.sum()),
+                             "converged with abort": int(new.sum()), "lost": int((ref & ~a.converged).sum()),
+                             "gained": int((new & ~b.converged).sum())})
+            rows.append({"alpha": alpha, "TOF band (TU)": "all", "converged without abort": int(b.converged.sum()),
+                         "converged with abort": int(a.converged.sum()),
+                         "lost": int((b.converged & ~a.converged).sum()),
+                         "gained": int((a.converged & ~b.converged).sum())})
     return rows
 
 
@@ -109,6 +180,10 @@ def main() -> None:
     ap.add_argument("--alphas", type=float, nargs="+", default=[0.1, 0.5, 1.0])
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--variants", action="store_true", help="compare the variants instead of the default")
+    ap.add_argument("--compare", action="store_true", help="previous default vs new default only")
+    ap.add_argument("--max-wall-s", type=float, default=None,
+                    help="raise the wall-time safety net (on a loaded machine it would cut solves short)")
+    ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
     ap.add_argument("--scaling", action="store_true", help="measure 1 → 2 worker scaling")
     ap.add_argument("--raw", type=Path, default=None, help="also save the raw rows as Parquet")
     args = ap.parse_args()
@@ -127,25 +202,39 @@ def main() -> None:
         write_section("scaling", text)
         return
 
-    variants = VARIANTS if args.variants else {"default": {}}
-    rows, caps, raw = [], [], []
-    for label, opts in variants.items():
-        for alpha in args.alphas:
-            df = run_multistart("cr3bp", alpha, args.seed, args.starts, workers=1, solver_options=opts, progress=False)
-            df["variant"] = label
-            raw.append(df)
-            row = {"variant": label, **summarize(df)} if args.variants else summarize(df)
-            rows.append(row)
-            caps += cap_table(df)
-            print(json.dumps(row, default=str), flush=True)
-    name = "variants" if args.variants else "default"
-    text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; one worker process.\n\n" + markdown(rows)
-    if not args.variants:
+    variants = VARIANTS if args.variants else COMPARE if args.compare else {"default": {}}
+    cells = [(label, opts, alpha) for label, opts in variants.items() for alpha in args.alphas]
+
+    def run_cell(cell):
+        label, opts, alpha = cell
+        if args.max_wall_s is not None:
+            opts = {**opts, "max_wall_s": args.max_wall_s}
+        df = run_multistart("cr3bp", alpha, args.seed, args.starts, workers=1, solver_options=opts, progress=False)
+        df["variant"] = label
+        print(json.dumps({"variant": label, **summarize(df)}, default=str), flush=True)
+        return df
+
+    # Each cell is one worker process solving in series; --jobs runs cells side by side (CPU time per solve
+    # is measured inside the worker, so it stays a one-core figure).
+    with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        raw = list(pool.map(run_cell, cells))
+    rows, caps = [], []
+    for df in raw:
+        rows.append({"variant": df.variant.iloc[0], **summarize(df)} if len(variants) > 1 else summarize(df))
+        caps += cap_table(df)
+    name = "variants" if args.variants else "compare" if args.compare else "default"
+    text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; one worker process per cell.\n\n" + markdown(rows)
+    if not args.variants and not args.compare:
         text += "\nIteration cap (computed from the same solves, see the script's docstring):\n\n" + markdown(caps)
+    all_raw = pd.concat(raw)
+    abort_rows = abort_table(all_raw)
+    if abort_rows:
+        text += ("\nStall abort, start by start on the same starts, per TOF band of the converged solution "
+                 "(see `abort_table`):\n\n" + markdown(abort_rows))
     print(text)
     write_section(name, text)
     if args.raw:
-        pd.concat(raw).to_parquet(args.raw)
+        all_raw.to_parquet(args.raw)
 
 
 if __name__ == "__main__":

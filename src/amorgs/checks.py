@@ -49,6 +49,14 @@ def expected_jobs(cfg: Config) -> list[tuple[str, dict[str, str]]]:
             for a in cfg.problems.cr3bp.alphas.test
             for s in cfg.ablation.samplers
         ]
+        from amorgs.ablation.arms import NEEDS_MODELS
+
+        needed = sorted({m for s in cfg.ablation.samplers for m in NEEDS_MODELS[s]})
+        jobs += [
+            ("train_cr3bp_replicate", {"problem": "cr3bp", "model": name, "mseed": str(m)})
+            for m in cfg.cr3bp_models.extra_seeds
+            for name in needed
+        ]
         jobs += [
             ("ablation_cell_replicate", {"alpha": alpha_label(a), "sampler": s, "mseed": str(m)})
             for m in cfg.cr3bp_models.extra_seeds

@@ -327,6 +327,8 @@ def cmd_train_cr3bp(args: argparse.Namespace) -> None:
         wildcards["fraction"] = args.fraction_label
         hq = subsample(hq, args.fraction, args.seed)
     rule = "train_cr3bp" if args.fraction is None else "train_cr3bp_fraction"
+    if args.replicate:
+        rule, wildcards["mseed"] = "train_cr3bp_replicate", str(args.seed)
     with tracking.job_run(rule, wildcards) as run:
         cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.learning_rate, seed=args.seed, device="cpu")
         run.log_params({"preset": args.preset, "rows": len(hq), "train_alphas": sorted(train_labels),
@@ -680,6 +682,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--epochs", required=True, type=int)
     p.add_argument("--batch-size", required=True, type=int)
     p.add_argument("--seed", required=True, type=int)
+    p.add_argument("--replicate", action="store_true",
+                   help="a replicate of an extra training seed (tracked as train_cr3bp_replicate, wildcard mseed = --seed)")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     p.add_argument("--output", required=True)
     p.set_defaults(func=cmd_train_cr3bp)

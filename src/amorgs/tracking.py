@@ -64,6 +64,9 @@ INVOCATION_FILE = "invocation.json"
 #: Distributions whose versions tag every run.
 VERSIONED_PACKAGES = ("amorgs", "numpy", "scipy", "pandas", "pyarrow", "torch", "casadi", "snakemake", "mlflow")
 
+#: The experiment tag by which the MLflow UI tells model training from GenAI experiments.
+EXPERIMENT_KIND_TAG = "mlflow.experimentKind"
+
 _MAX_BATCH = 900  # MLflow's log_batch accepts at most 1000 metrics
 
 
@@ -219,6 +222,8 @@ def _open_parent_run(
     # the local store keeps artifacts beside the database; a server decides where its artifacts go
     artifacts = (store / "artifacts").resolve().as_uri() if uri == tracking_uri(store) else None
     exp_id = exp.experiment_id if exp is not None else client.create_experiment(experiment, artifact_location=artifacts)
+    if exp is None or exp.tags.get(EXPERIMENT_KIND_TAG) is None:  # the UI then opens on the runs table
+        client.set_experiment_tag(exp_id, EXPERIMENT_KIND_TAG, "custom_model_development")
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
     tags = {
         "kind": "workflow",

@@ -126,14 +126,20 @@ def dense_history(x: np.ndarray, alpha: float, initial_state, terminal_state,
             raise FloatingPointError(sol.message)
         steps = (t1 + sol.t) if backward else (t0 + sol.t)
         uniform = np.linspace(t0, t1, int(np.ceil(duration / max_step_tu)) + 1)
-        grid = np.unique(np.concatenate([t_nodes[a:b], steps, uniform]))
-        grid = grid[(grid >= t0) & (grid <= t1)]
+        nodes = t_nodes[a:b]
+        extra = np.concatenate([steps, uniform])
+        pos = np.clip(np.searchsorted(nodes, extra), 1, nodes.size - 1)
+        gap = np.minimum(np.abs(extra - nodes[pos - 1]), np.abs(extra - nodes[pos]))
+        extra = extra[(gap > 1e-9) & (extra > t0) & (extra < t1)]  # never a near-copy of a node
+        grid = np.unique(np.concatenate([nodes, extra]))
         states = sol.sol((grid - t1) if backward else (grid - t0)).T
         # keep propagate's own samples exactly
         at_node = np.searchsorted(grid, t_nodes[a:b])
         states[at_node] = s_nodes[a:b]
         ts.append(grid); ss.append(states); segs.append(np.full(grid.size, k))
     t, states, seg = np.concatenate(ts), np.vstack(ss), np.concatenate(segs)
+    # propagate's two halves meet at the match point with times equal only to ~1e-14 TU: make t non-decreasing
+    t = np.maximum.accumulate(t)
     return _tabulate(t, states, seg, x, alpha)
 
 
@@ -230,8 +236,9 @@ def read_oem_rotating(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
 def plot_trajectories(histories: Sequence[pd.DataFrame], alpha: float, labels: Sequence[str] | None = None):
     """3-D plot of the trajectories: rotating frame (barycentric, 10³ km) and Earth-centred inertial frame."""
     from matplotlib import pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
-    fig = plt.figure(figsize=(13, 6))
+    fig = plt.figure(figsize=(13, 7))
     axes = [fig.add_subplot(1, 2, i + 1, projection="3d") for i in range(2)]
     cmap = plt.get_cmap("viridis")
     labels = list(labels) if labels is not None else [f"#{i + 1}" for i in range(len(histories))]
@@ -253,9 +260,11 @@ def plot_trajectories(histories: Sequence[pd.DataFrame], alpha: float, labels: S
     for ax in axes:
         lims = np.array([ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()])
         ax.set_box_aspect(np.maximum(lims[:, 1] - lims[:, 0], 1e-9))  # equal scale on the three axes
+        ax.zaxis.set_major_locator(MaxNLocator(3))
         ax.set_xlabel("x [10³ km]")
         ax.set_ylabel("y [10³ km]")
         ax.set_zlabel("z [10³ km]")
-    axes[0].legend(fontsize=6, loc="upper left", ncol=2)
-    fig.tight_layout()
+    handles, names = axes[0].get_legend_handles_labels()
+    fig.legend(handles, names, fontsize=7, loc="lower center", ncol=4, frameon=False)
+    fig.subplots_adjust(left=0.02, right=0.95, top=0.93, bottom=0.03 + 0.022 * ((len(names) + 3) // 4), wspace=0.1)
     return fig

@@ -88,3 +88,22 @@ def test_reuse_baseline_cells_on_library_data():
         assert list(cell["sampler"].unique()) == [sampler.name] and len(cell) == 2
         again = sampler.sample(0.85, 2, np.random.default_rng(3))
         np.testing.assert_array_equal(cell[[f"guess_{v}" for v in problem.variable_names]].to_numpy(), again)
+
+
+def test_ablation_cell_cli_nearest_alpha(tmp_path, monkeypatch):
+    """`amorgs ablation-cell --sampler nearest_alpha` with the high-quality table, as the workflow calls it."""
+    import pandas as pd
+
+    from amorgs.cli import main
+
+    hq = _library_high_quality()
+    monkeypatch.chdir(tmp_path)  # no results/mlflow here: tracking is a no-op
+    hq.to_parquet("hq.parquet")
+    main(["ablation-cell", "--alpha", "0.85", "--sampler", "nearest_alpha", "--high-quality", "hq.parquet",
+          "--train-alphas", "0.7", "0.8", "0.9", "--model-seed", "11", "--starts", "1", "--seed", "2",
+          "--workers", "1", "--solver-options", '{"max_iter": 200, "max_wall_s": 60.0}', "--output", "cell.parquet"])
+    cell = pd.read_parquet("cell.parquet")
+    assert len(cell) == 1 and cell["sampler"].iloc[0] == "nearest_alpha" and cell["model_seed"].iloc[0] == 11
+    with pytest.raises(SystemExit, match="needs --high-quality"):
+        main(["ablation-cell", "--alpha", "0.85", "--sampler", "nearest_alpha", "--starts", "1", "--seed", "2",
+              "--output", "x.parquet"])

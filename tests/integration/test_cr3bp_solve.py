@@ -107,3 +107,22 @@ def test_segment_steps_follow_thrust_level():
     assert opts.for_alpha(0.1).steps_per_segment == 42
     with pytest.raises(ValueError, match="for_alpha"):
         ForwardBackwardTranscription(np.zeros(7), np.zeros(6), opts)
+
+
+def test_stall_abort_is_a_row_with_its_own_status(problem):
+    # Demand a 1e9-fold fall of the infeasibility every 5 iterations: a start far from feasible is stopped.
+    stalling = problem.make_local_solver(
+        {"max_iter": 50, "compile": "none", "stall_window": 5, "stall_factor": 1e-9, "stall_floor": 0.0}
+    )
+    record = stalling.solve(problem.sample_uniform(0.3, 1, np.random.default_rng(1))[0], 0.3)
+    assert record.status == "aborted_stalled"
+    assert not record.converged and not record.solver_success
+    assert 4 <= record.iterations <= 6 and math.isfinite(record.cpu_s)
+    assert len(stalling.last_trace) >= 6 and all(v > 0 for v in stalling.last_trace)
+
+
+def test_solution_lies_inside_the_box_and_is_a_valid_warm_start(problem, solver, solution):
+    x = problem.check_guess(solution.x)
+    assert np.all(x >= problem.lower) and np.all(x <= problem.upper)
+    again = solver.solve(x, 1.0)  # warm start from the stored solution converges at once
+    assert again.converged and again.iterations <= 30

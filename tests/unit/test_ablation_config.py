@@ -62,6 +62,8 @@ def test_replicate_jobs_are_expected():
     rep = [w for rule, w in jobs if rule == "ablation_cell_replicate"]
     assert len(rep) == 2 * 2 * len(SAMPLER_NAMES)
     assert {"alpha": "0.850", "sampler": "nearest_alpha", "mseed": "13"} in rep
+    trained = [w for rule, w in jobs if rule == "train_cr3bp_replicate"]
+    assert {"problem": "cr3bp", "model": "lstm", "mseed": "12"} in trained and len(trained) == 2 * 3
 
 
 def test_iteration_caps_may_not_exceed_max_iter(tmp_path):
@@ -114,3 +116,49 @@ def test_check_outputs_inspects_the_new_ablation_outputs(tmp_path, monkeypatch):
     assert "aRT_iterations_" in _check_file(layout.ABLATION_SUMMARY)
     Path(layout.ABLATION_SUMMARY).write_text(json.dumps({"aRT_iterations_a0.150_uniform": 50.0}))
     assert _check_file(layout.ABLATION_SUMMARY) is None
+
+
+def test_ablation_report_cli_writes_every_declared_output(tmp_path, monkeypatch):
+    """`amorgs ablation-report` with the issue-11 options writes every table and figure layout declares."""
+    import json
+
+    import numpy as np
+    import pandas as pd
+
+    from amorgs.cli import main
+
+    monkeypatch.chdir(tmp_path)  # no results/mlflow here: tracking is a no-op
+    rng = np.random.default_rng(0)
+    cells = []
+    for alpha in (0.15, 0.85):
+        for k, sampler in enumerate(("uniform", "nearest_alpha", "amorgs")):
+            n = 8
+            hq = rng.random(n) < 0.3 + 0.3 * k
+            cells.append(pd.DataFrame({
+                "problem": "cr3bp", "alpha": alpha, "sampler": sampler, "seed": 1, "start": np.arange(n),
+                "converged": hq, "m_f": np.where(hq, rng.uniform(415, 440, n), 300.0),
+                "tau_s": rng.uniform(5, 30, n), "tau_i": rng.uniform(1, 10, n), "tau_f": rng.uniform(1, 10, n),
+                "guess_tau_s": 10.0, "guess_tau_i": 2.0, "guess_tau_f": 2.0, "guess_m_f": 420.0,
+                "iterations": rng.integers(20, 1000, n), "cpu_s": rng.uniform(0.2, 10, n), "wall_s": 1.0,
+            }))
+    paths = []
+    for i, c in enumerate(cells):
+        paths.append(str(tmp_path / f"cell{i}.parquet"))
+        c.to_parquet(paths[-1])
+    truth = pd.concat(cells)[lambda d: d["converged"]]
+    truth.to_parquet(tmp_path / "hq.parquet")
+    t = "results/tables"
+    main(["ablation-report", "--cells", *paths, "--high-quality", str(tmp_path / "hq.parquet"), "--beta", "415",
+          "--summary", layout.ABLATION_SUMMARY, "--table6-csv", f"{t}/table6.csv", "--table6-md", f"{t}/table6.md",
+          "--capped", f"{t}/ablation_capped.csv", "--coverage", f"{t}/ablation_coverage.csv",
+          "--beta-sweep", "425", "435", "--iteration-caps", "50", "200", "--max-iter", "1000", "--n-boot", "100",
+          "--seed", "3", "--figures-dir", "results/figures"])
+    for name in layout.ABLATION_TABLES:
+        assert (tmp_path / t / name).stat().st_size > 0, name
+    for name in layout.ABLATION_FIGURES:
+        assert (tmp_path / "results/figures" / f"{name}.png").read_bytes().startswith(b"\x89PNG"), name
+    summary = json.loads(Path(layout.ABLATION_SUMMARY).read_text())
+    assert "aRT_iterations_a0.850_nearest_alpha" in summary and "itcap_percent_a0.150_cap50_amorgs" in summary
+    from amorgs.checks import _check_file
+
+    assert [m for m in (_check_file(f"{t}/{n}") for n in layout.ABLATION_TABLES) if m] == []

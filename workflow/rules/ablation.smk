@@ -37,8 +37,8 @@ def seed_of_replicate_cell(wildcards):
 
 ABLATION_CELL_SHELL = (
     "python -m amorgs ablation-cell --alpha {params.alpha} --sampler {wildcards.sampler} {params.args} "
-    "--model-seed {params.model_seed} {params.replicate} --starts {params.starts} --seed {params.seed} --workers {threads} "
-    "--solver-options {params.solver:q} --output {output} > {log} 2>&1"
+    "--model-seed {params.model_seed} {params.replicate} --starts {params.starts} --seed {params.seed} "
+    "--workers {threads} --solver-options {params.solver:q} --output {output} > {log} 2>&1"
 )
 
 
@@ -49,6 +49,12 @@ rule ablation_cell:
         layout.ABLATION_CELL,
     log:
         "logs/ablation_cell/alpha={alpha}/{sampler}.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: CFG.ablation.workers
+    resources:
+        mem_mb=CFG.ablation.mem_mb,
+        runtime=CFG.ablation.runtime_min,
     params:
         alpha=lambda w: CFG.problems.cr3bp.alpha_values()[w.alpha],
         seed=seed_of_cell,
@@ -57,37 +63,31 @@ rule ablation_cell:
         starts=CFG.ablation.n_starts,
         solver=json.dumps(CFG.problems.cr3bp.solver_options(), sort_keys=True),
         args=ablation_cell_args,
-    threads: CFG.ablation.workers
-    resources:
-        mem_mb=CFG.ablation.mem_mb,
-        runtime=CFG.ablation.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         ABLATION_CELL_SHELL
 
 
 rule train_cr3bp_replicate:
-    # the models of one extra training seed: train_cr3bp's settings with --seed replaced (argparse keeps the last)
+    # the models of one extra training seed: train_cr3bp's settings with this seed
     input:
         layout.HIGH_QUALITY.format(problem="cr3bp"),
     output:
         layout.CR3BP_REPLICATE_MODEL,
-    wildcard_constraints:
-        mseed=r"\d+",
     log:
         "logs/train_cr3bp/seed={mseed}/{model}.log",
-    params:
-        training=train_cr3bp_params(),
+    wildcard_constraints:
+        mseed=r"\d+",
+    conda:
+        "../envs/amorgs.yaml"
     threads: CFG.resources.train.threads
     resources:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
+    params:
+        training=lambda w: train_cr3bp_params(int(w.mseed)),
     shell:
         "python -m amorgs train-cr3bp --data {input} --model {wildcards.model} {params.training} "
-        "--seed {wildcards.mseed} --threads {threads} --output {output} > {log} 2>&1"
+        "--threads {threads} --output {output} > {log} 2>&1"
 
 
 rule ablation_cell_replicate:
@@ -95,10 +95,16 @@ rule ablation_cell_replicate:
         unpack(lambda w: ablation_cell_inputs(w, layout.CR3BP_REPLICATE_MODEL)),
     output:
         layout.ABLATION_REPLICATE_CELL,
-    wildcard_constraints:
-        mseed=r"\d+",
     log:
         "logs/ablation_cell/seed={mseed}/alpha={alpha}/{sampler}.log",
+    wildcard_constraints:
+        mseed=r"\d+",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: CFG.ablation.workers
+    resources:
+        mem_mb=CFG.ablation.mem_mb,
+        runtime=CFG.ablation.runtime_min,
     params:
         alpha=lambda w: CFG.problems.cr3bp.alpha_values()[w.alpha],
         seed=seed_of_replicate_cell,
@@ -107,12 +113,6 @@ rule ablation_cell_replicate:
         starts=CFG.ablation.n_starts,
         solver=json.dumps(CFG.problems.cr3bp.solver_options(), sort_keys=True),
         args=ablation_cell_args,
-    threads: CFG.ablation.workers
-    resources:
-        mem_mb=CFG.ablation.mem_mb,
-        runtime=CFG.ablation.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         ABLATION_CELL_SHELL
 
@@ -127,14 +127,23 @@ rule ablation_report:
         table6_md=layout.TABLE.format(name="table6.md"),
         capped=layout.TABLE.format(name="ablation_capped.csv"),
         coverage=layout.TABLE.format(name="ablation_coverage.csv"),
-        stat_tables=[layout.TABLE.format(name=n) for n in layout.ABLATION_TABLES if n.startswith("ablation_")
-                     and n not in ("ablation_capped.csv", "ablation_coverage.csv")],
+        stat_tables=[
+            layout.TABLE.format(name=n)
+            for n in layout.ABLATION_TABLES
+            if n.startswith("ablation_") and n not in ("ablation_capped.csv", "ablation_coverage.csv")
+        ],
         figures=[
             report(layout.FIGURE.format(name=n), caption="../report/ablation.rst", category="CR3BP ablation")
             for n in layout.ABLATION_FIGURES
         ],
     log:
         "logs/ablation_report.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: CFG.resources.figure.threads
+    resources:
+        mem_mb=CFG.resources.figure.mem_mb,
+        runtime=CFG.resources.figure.runtime_min,
     params:
         beta=CFG.problems.cr3bp.filter.min_final_mass_kg,
         figures_dir=lambda w, output: os.path.dirname(output.figures[0]),
@@ -144,12 +153,6 @@ rule ablation_report:
         max_iter=CFG.problems.cr3bp.solver.max_iter,
         n_boot=CFG.ablation.n_boot,
         seed=CFG.ablation.seed,
-    threads: CFG.resources.figure.threads
-    resources:
-        mem_mb=CFG.resources.figure.mem_mb,
-        runtime=CFG.resources.figure.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         "python -m amorgs ablation-report --cells {input.cells} --high-quality {input.high_quality} "
         "--beta {params.beta} --summary {output.summary} --table6-csv {output.table6_csv} "

@@ -74,12 +74,15 @@ def seed_of_cell(wildcards):
     return cell_seed(CFG.ablation.seed, "cr3bp", CFG.problems.cr3bp.alpha_values()[wildcards.alpha], wildcards.sampler)
 
 
-def train_cr3bp_params():
-    """The training settings shared by train_cr3bp and train_cr3bp_fraction."""
+def train_cr3bp_params(seed=None):
+    """The training settings shared by train_cr3bp, train_cr3bp_fraction and (with its own seed and
+    --replicate) train_cr3bp_replicate."""
     m = CFG.cr3bp_models
+    replicate = "" if seed is None else " --replicate"
     return (
         f"--train-alphas {floats(CFG.problems.cr3bp.alphas.train_values())} --preset {m.preset} "
-        f"--learning-rate {m.learning_rate!r} --epochs {m.epochs} --batch-size {m.batch_size} --seed {m.seed}"
+        f"--learning-rate {m.learning_rate!r} --epochs {m.epochs} --batch-size {m.batch_size} "
+        f"--seed {m.seed if seed is None else seed}{replicate}"
     )
 
 

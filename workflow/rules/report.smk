@@ -10,12 +10,12 @@ rule fig02_foxholes:
         ),
     log:
         "logs/fig02_foxholes.log",
+    conda:
+        "../envs/amorgs.yaml"
     threads: CFG.resources.figure.threads
     resources:
         mem_mb=CFG.resources.figure.mem_mb,
         runtime=CFG.resources.figure.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         "python -m amorgs fig02-foxholes --output {output} > {log} 2>&1"
 
@@ -32,14 +32,14 @@ rule fig16_dejong_predictions:
         ),
     log:
         "logs/fig16_dejong_predictions.log",
-    params:
-        train_alphas=" ".join(map(repr, CFG.problems.dejong.alphas.train_values())),
+    conda:
+        "../envs/amorgs.yaml"
     threads: CFG.resources.figure.threads
     resources:
         mem_mb=CFG.resources.figure.mem_mb,
         runtime=CFG.resources.figure.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
+    params:
+        train_alphas=" ".join(map(repr, CFG.problems.dejong.alphas.train_values())),
     shell:
         "python -m amorgs fig16-dejong-predictions --data {input.data} --samples {input.samples} "
         "--train-alphas {params.train_alphas} --output {output} > {log} 2>&1"

@@ -1,5 +1,9 @@
 """Statistics of the warm-start ablation: Table 6, the capped-time convergence of Fig. 22, the search
-acceleration with a bootstrap interval, and hyperplane coverage at equal CPU time (paper Sec. V.B.7–8).
+acceleration with a bootstrap interval, and hyperplane coverage at equal CPU time (paper Sec. V.B.7–8);
+and (issue 11) statistics that hold at modest n: :func:`rates` (Wilson intervals, one-sided Fisher exact
+tests vs uniform and vs nearest_alpha, the β sweep), :func:`expected_running_time` (COCO aRT in IPOPT
+iterations and CPU seconds, bootstrap speed-ups), :func:`iteration_capped` (Fig. 22 with a cap fixed before
+the solves) and :func:`anytime_curves`.  All pure functions of the cell tables.
 
 Input everywhere: the concatenation of ablation cell tables (columns ``alpha, sampler, converged, m_f,
 tau_s, tau_i, tau_f, cpu_s, wall_s, start``).  "Solve time" is the solve's CPU seconds (one thread per

@@ -42,6 +42,18 @@ class SolverOptions:
     ``max_iter`` is the primary cap (deterministic); ``max_wall_s`` is only a safety net.  ``feasibility_tol``
     bounds the NLP's own match-point defect (DU, VU, t) for the solve to count; ``verify_tol`` bounds the
     independent DOP853 defect (spec §6).
+
+    Stall abort (deterministic: iteration counts and infeasibility only, never wall time): with
+    ``stall_window`` = W > 0 a solve stops with status ``aborted_stalled`` at the first iteration i ≥ W where
+    the best max|g| so far is above ``stall_floor`` and above ``stall_factor`` × the best max|g| up to
+    iteration i − W (the primal infeasibility did not fall by 1/``stall_factor`` in W iterations).  The rule
+    and its default were chosen from the infeasibility traces of converged vs failed starts
+    (docs/performance.md); 0 switches it off.
+
+    ``compile_flags``: gcc flags of the cached NLP library (part of its cache key, with the CPU model when
+    ``-march=native``).  ``-ffp-contract=off`` keeps the floating-point results of ``-O2`` bit for bit
+    (no fused multiply-adds), so only the speed changes.  ``ipopt_options``: extra IPOPT options, applied
+    last (they override the ones derived from the fields above).
     """
 
     hessian: str = "limited-memory"  # or "exact"
@@ -54,10 +66,12 @@ class SolverOptions:
     feasibility_tol: float = 1e-8
     verify_tol: float = VERIFY_TOLERANCE
     linear_solver: str = "mumps"
-    stall_window: int = 0
-    stall_factor: float = 0.1
+    stall_window: int = 300
+    stall_factor: float = 0.5
     stall_floor: float = 1e-6
     compile: str = "cache"  # "cache": C code compiled once per machine; "jit": per process; "none"
+    compile_flags: str = "-O3 -march=native -ffp-contract=off"
+    ipopt_options: dict = field(default_factory=dict)
     transcription: TranscriptionOptions = field(default_factory=TranscriptionOptions)
 
     @classmethod
@@ -80,6 +94,16 @@ class SolverOptions:
             raise ValueError(f"cr3bp solver option compile must be 'cache', 'jit' or 'none', got {opts.compile!r}")
         if opts.hessian not in ("exact", "limited-memory"):
             raise ValueError(f"cr3bp solver option hessian must be 'exact' or 'limited-memory', got {opts.hessian!r}")
+        if not isinstance(opts.stall_window, int) or isinstance(opts.stall_window, bool) or opts.stall_window < 0:
+            raise ValueError(f"cr3bp solver option stall_window must be an integer ≥ 0, got {opts.stall_window!r}")
+        if not 0.0 < float(opts.stall_factor) <= 1.0:
+            raise ValueError(f"cr3bp solver option stall_factor must be in (0, 1], got {opts.stall_factor!r}")
+        if not float(opts.stall_floor) >= 0.0:
+            raise ValueError(f"cr3bp solver option stall_floor must be ≥ 0, got {opts.stall_floor!r}")
+        if not isinstance(opts.compile_flags, str) or not opts.compile_flags.split():
+            raise ValueError(f"cr3bp solver option compile_flags must be a non-empty string, got {opts.compile_flags!r}")
+        if not isinstance(opts.ipopt_options, dict) or not all(isinstance(k, str) for k in opts.ipopt_options):
+            raise ValueError(f"cr3bp solver option ipopt_options must be a dict of IPOPT options, got {opts.ipopt_options!r}")
         return opts
 
     def to_dict(self) -> dict:
@@ -181,11 +205,25 @@ def cache_dir() -> Path:
     return Path(os.environ.get("AMORGS_CACHE_DIR", Path.home() / ".cache" / "amorgs"))
 
 
-def compiled_nlp_library(transcription: ForwardBackwardTranscription, hessian: str, problem) -> Path:
+def cpu_identity() -> str:
+    """CPU model and instruction-set flags (part of the cache key when code is built with -march=native)."""
+    try:
+        info = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return platform.processor() or platform.machine()
+    model = next((line.split(":", 1)[1].strip() for line in info if line.startswith("model name")), "")
+    flags = next((line.split(":", 1)[1].strip() for line in info if line.startswith(("flags", "Features"))), "")
+    return f"{model}|{hashlib.sha256(flags.encode()).hexdigest()[:16]}"
+
+
+def compiled_nlp_library(
+    transcription: ForwardBackwardTranscription, hessian: str, problem, flags: str = "-O2"
+) -> Path:
     """Shared library with the NLP functions IPOPT needs, generated and compiled once per machine.
 
     The key covers everything compiled into the code: transcription options, Hessian mode, boundary
-    conditions (embedded as constants), CasADi version and CPU architecture.  Concurrent workers may race
+    conditions (embedded as constants), CasADi version, CPU architecture and the gcc flags (plus the CPU
+    model and instruction-set flags when they include ``-march=native``).  Concurrent workers may race
     to build it; each compiles into a private temp file and ``os.replace`` makes the winner atomic.
     """
     key = json.dumps(
@@ -196,6 +234,8 @@ def compiled_nlp_library(transcription: ForwardBackwardTranscription, hessian: s
             "terminal": problem.terminal_state.tolist(),
             "casadi": ca.__version__,
             "machine": platform.machine(),
+            "flags": flags,
+            "cpu": cpu_identity() if "native" in flags else "",
             "format": 1,
         },
         sort_keys=True,
@@ -215,7 +255,7 @@ def compiled_nlp_library(transcription: ForwardBackwardTranscription, hessian: s
             os.chdir(cwd)
         built = Path(tmp) / target.name
         subprocess.run(
-            ["gcc", "-O2", "-fPIC", "-shared", str(Path(tmp) / "cr3bp_nlp.c"), "-o", str(built), "-lm"],
+            ["gcc", *flags.split(), "-fPIC", "-shared", str(Path(tmp) / "cr3bp_nlp.c"), "-o", str(built), "-lm"],
             check=True,
             capture_output=True,
         )
@@ -252,6 +292,7 @@ class IpoptSolver:
             "linear_solver": options.linear_solver,
             "print_level": 0,
             "sb": "yes",
+            **options.ipopt_options,
         }
 
     def transcription(self, alpha: float) -> ForwardBackwardTranscription:
@@ -269,13 +310,14 @@ class IpoptSolver:
                     "iteration_callback": monitor}
             mode = self.options.compile
             if mode == "cache":
-                library = compiled_nlp_library(tr, self.options.hessian, self.problem)
+                library = compiled_nlp_library(tr, self.options.hessian, self.problem, self.options.compile_flags)
                 nlpsol = ca.nlpsol("cr3bp", "ipopt", str(library), opts)
             elif mode == "jit":
+                options_flags = self.options.compile_flags.split()
                 # CasADi writes the JIT source into the working directory: build inside a private temp dir.
                 self._jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
                 opts.update(jit=True, jit_cleanup=False, compiler="shell",
-                            jit_options={"flags": ["-O2"], "verbose": False, "directory": self._jit_dir.name})
+                            jit_options={"flags": options_flags, "verbose": False, "directory": self._jit_dir.name})
                 cwd = os.getcwd()
                 try:
                     os.chdir(self._jit_dir.name)

@@ -46,10 +46,13 @@ def variable_names(n_segments: int = N_SEGMENTS) -> tuple[str, ...]:
 class TranscriptionOptions:
     """Integration and layout choices; they do not change the stored 64-vector.
 
-    steps_per_segment: RK8 steps per thrust segment (length τ_s/N) at α ≥ ``step_scaling_alpha``; below it
+    steps_per_segment: RK8 steps per thrust segment (length τ_s/N) at α = ``step_scaling_alpha``; below it
         the count grows as ``ceil(steps_per_segment · sqrt(step_scaling_alpha / α))`` because low thrust means
         long thrust arcs (τ_s up to 40 TU, segments of 2 TU ≈ one revolution near the spiral end).  Use
-        :meth:`for_alpha` to resolve it; 0 disables the scaling.
+        :meth:`for_alpha` to resolve it; ``step_scaling_alpha`` = 0 disables the scaling.
+    scale_down: apply the same law above ``step_scaling_alpha`` too (fewer steps at high thrust, where the
+        converged transfers are shorter), never below ``min_steps_per_segment``.
+    min_steps_per_segment: floor of the scaled count.
     steps_per_coast: RK8 steps per coast arc (τ_i or τ_f), split evenly over ``coast_pieces``.
     coast_pieces: sub-arcs per coast (each a shooting node when ``multiple_shooting``).
     multiple_shooting: node states at every piece boundary (exact Hessian becomes sparse and cheap).
@@ -60,16 +63,20 @@ class TranscriptionOptions:
     coast_pieces: int = 8
     multiple_shooting: bool = False
     step_scaling_alpha: float = 0.3
+    scale_down: bool = False
+    min_steps_per_segment: int = 1
 
     def for_alpha(self, alpha: float) -> "TranscriptionOptions":
         """The options with ``steps_per_segment`` resolved for this α (and the scaling switched off)."""
         steps = self.steps_per_segment
-        if self.step_scaling_alpha > 0 and alpha < self.step_scaling_alpha:
+        if self.step_scaling_alpha > 0 and (alpha < self.step_scaling_alpha or self.scale_down):
             steps = math.ceil(self.steps_per_segment * math.sqrt(self.step_scaling_alpha / alpha) - 1e-9)
-        return replace(self, steps_per_segment=steps, step_scaling_alpha=0.0)
+            steps = max(steps, self.min_steps_per_segment)
+        return replace(self, steps_per_segment=steps, step_scaling_alpha=0.0, scale_down=False,
+                       min_steps_per_segment=1)
 
     def __post_init__(self) -> None:
-        for key in ("steps_per_segment", "steps_per_coast", "coast_pieces"):
+        for key in ("steps_per_segment", "steps_per_coast", "coast_pieces", "min_steps_per_segment"):
             if int(getattr(self, key)) < 1:
                 raise ValueError(f"transcription option {key} must be ≥ 1, got {getattr(self, key)}")
         if self.steps_per_coast % self.coast_pieces:

@@ -1,0 +1,163 @@
+"""`amorgs design` end to end (issue 12): real solves at α = 0.42 warm-started from the shipped library, the
+written files, the OEM read back with the `oem` package and compared with `propagate`, the verification of
+every stored solution, the MLflow run, determinism across worker counts, and the one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+ALPHA = 0.42
+SEED = 1
+
+
+def amorgs(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "amorgs", *args], cwd=REPO, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def designed(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("design")
+    out, store = tmp / "out", tmp / "mlflow"
+    proc = amorgs("design", "--alpha", str(ALPHA), "-n", "2", "--round-size", "4", "--max-starts", "12",
+                  "--workers", "2", "--seed", str(SEED), "--output", str(out), "--mlflow-dir", str(store))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "Traceback" not in proc.stderr
+    return {"out": out, "store": store, "proc": proc}
+
+
+@pytest.mark.slow
+def test_design_writes_every_file(designed):
+    out = designed["out"]
+    for name in ("solutions.parquet", "solutions.csv", "all_solves.parquet", "summary.json", "README.txt",
+                 "trajectories.png"):
+        assert (out / name).stat().st_size > 0, name
+    selected = pd.read_parquet(out / "solutions.parquet")
+    assert list(selected["rank"]) == [1, 2]
+    assert selected["converged"].all() and (selected["m_f"] >= 415.0).all()
+    assert selected["m_f"].is_monotonic_decreasing
+    csv = pd.read_csv(out / "solutions.csv")
+    np.testing.assert_allclose(csv["m_f"], selected["m_f"], rtol=1e-12)
+    for rank in (1, 2):
+        history = pd.read_csv(out / "trajectories" / f"rank-{rank:02d}.csv")
+        assert {"t_tu", "epoch_tdb", "x_du", "x_rot_km", "x_emi_km", "vz_emi_km_s", "fuel_kg", "mass_kg",
+                "throttle", "thrust_n", "ux_rot", "ux_emi"} <= set(history.columns)
+        assert history["t_tu"].is_monotonic_increasing
+        assert (history["throttle"].between(0, 1)).all()
+        assert (history.loc[history["segment"] == 0, "throttle"] == 0).all()
+        np.testing.assert_allclose(history["mass_kg"] - history["fuel_kg"], 300.0)
+        thrusting = history["segment"] > 0
+        norms = np.linalg.norm(history.loc[thrusting, ["ux_emi", "uy_emi", "uz_emi"]].to_numpy(), axis=1)
+        np.testing.assert_allclose(norms, 1.0, atol=1e-12)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["found"] >= 2 and summary["returned"] == 2 and summary["stop_reason"] == "found"
+    assert summary["nearest_training_alpha"] == 0.5 and summary["sampler"] == "nearest_alpha"
+    assert summary["starts"] <= 12
+    print(f"\ndesign α={ALPHA} n=2: starts {summary['starts']}, found {summary['found']}, CPU {summary['cpu_s']:.1f} s, "
+          f"solver CPU {summary['solver_cpu_s']:.1f} s, wall {summary['wall_s']:.1f} s")
+
+
+@pytest.mark.slow
+def test_oem_read_back_matches_propagate_and_solutions_verify(designed):
+    from astropy.time import Time
+    from oem import OrbitEphemerisMessage
+
+    from amorgs.config import load_config
+    from amorgs.problems import get_problem
+    from amorgs.problems.cr3bp import frames
+    from amorgs.problems.cr3bp.problem import SolverOptions
+    from amorgs.problems.cr3bp.propagation import independent_defect, propagate
+
+    problem = get_problem("cr3bp")
+    names = list(problem.variable_names)
+    selected = pd.read_parquet(designed["out"] / "solutions.parquet")
+    cfg = load_config(REPO / "config/default.yaml", REPO / "workflow/schemas/config.schema.yaml")
+    verify_tol = SolverOptions.from_dict(cfg.problems.cr3bp.solver_options()).verify_tol
+    for _, row in selected.iterrows():
+        x = row[names].to_numpy(dtype=float)
+        assert independent_defect(x, ALPHA, problem.initial_state, problem.terminal_state) <= verify_tol
+
+        message = OrbitEphemerisMessage.open(str(designed["out"] / "trajectories" / f"rank-{int(row['rank']):02d}.oem"))
+        (segment,) = list(message)
+        assert segment.metadata["REF_FRAME"] == frames.INERTIAL_FRAME_NAME
+        assert segment.metadata["CENTER_NAME"] == "EARTH" and segment.metadata["TIME_SYSTEM"] == "TDB"
+        states = message.states
+        t_oem = frames.tu_after_epoch(Time([s.epoch for s in states]))
+        emi_km = np.array([np.r_[s.position, s.velocity] for s in states])
+        rot = frames.inertial_to_rotating(t_oem, frames.from_km(emi_km))
+
+        traj = propagate(x, ALPHA, problem.initial_state, problem.terminal_state)
+        first = np.r_[True, np.diff(traj.t) > 0]  # the OEM keeps the first sample of a repeated epoch
+        t_ref, s_ref = traj.t[first], traj.states[:6, first].T
+        idx = np.searchsorted(t_oem, t_ref - 1e-9)
+        assert np.all(np.abs(t_oem[idx] - t_ref) * frames.TU_S < 1e-6), "every propagate epoch is in the OEM (to 1 µs)"
+        pos_err_km = np.abs(rot[idx, :3] - s_ref[:, :3]).max() * frames.DU_KM
+        vel_err_km_s = np.abs(rot[idx, 3:] - s_ref[:, 3:]).max() * frames.VU_KM_S
+        assert pos_err_km < 1e-3, pos_err_km
+        assert vel_err_km_s < 1e-8, vel_err_km_s
+        # the OEM also agrees with the CSV history at its own epochs (same frame, km)
+        history = pd.read_csv(designed["out"] / "trajectories" / f"rank-{int(row['rank']):02d}.csv")
+        assert len(states) <= len(history) and t_oem[-1] == pytest.approx(history["t_tu"].iloc[-1], abs=1e-11)
+
+
+@pytest.mark.slow
+def test_design_is_one_mlflow_run_with_metrics_and_artifacts(designed):
+    from mlflow.tracking import MlflowClient
+
+    from amorgs import tracking
+
+    client = MlflowClient(tracking.tracking_uri(designed["store"]))
+    exp = client.get_experiment_by_name("amorgs-design")
+    runs = client.search_runs([exp.experiment_id], filter_string="tags.rule = 'design'")
+    assert len(runs) == 1
+    run = runs[0]
+    assert run.info.status == "FINISHED"
+    assert run.data.metrics["found"] >= 2 and run.data.metrics["complete"] == 1.0
+    assert {"starts", "cpu_s", "wall_s", "solver_cpu_s"} <= set(run.data.metrics)
+    assert run.data.params["alpha"] == str(ALPHA) and run.data.params["sampler"] == "nearest_alpha"
+    artifacts = {a.path for kind in ("tables", "figures", "reports", "trajectories")
+                 for a in client.list_artifacts(run.info.run_id, kind)}
+    assert {"tables/solutions.parquet", "figures/trajectories.png", "trajectories/rank-01.oem"} <= artifacts
+
+
+@pytest.mark.slow
+def test_same_seed_same_solutions_with_one_worker(designed):
+    """Determinism: the in-process search with 1 worker reproduces the CLI's 2-worker table."""
+    from amorgs.design import DesignRequest, design
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.chdir(REPO)
+        result = design(DesignRequest(alpha=ALPHA, n=2, round_size=4, max_starts=12, workers=1, seed=SEED))
+    cli = pd.read_parquet(designed["out"] / "all_solves.parquet")
+    cols = ["start", "status", "converged", "iterations", "m_f", "tau_s", "tau_i", "tau_f", "theta_05", "rho_20"]
+    pd.testing.assert_frame_equal(result.solves[cols].reset_index(drop=True), cli[cols], check_exact=False, rtol=1e-12)
+    assert list(result.selected["start"]) == list(pd.read_parquet(designed["out"] / "solutions.parquet")["start"])
+
+
+@pytest.mark.parametrize(
+    "args, names",
+    [
+        (["--alpha", "0.05", "-n", "3"], "--alpha"),
+        (["--alpha", "0.42", "-n", "0"], "-n"),
+        (["--alpha", "0.42", "-n", "3", "--max-starts", "0"], "--max-starts"),
+        (["--alpha", "0.42", "-n", "3", "--max-cpu-s", "-5"], "--max-cpu-s"),
+        (["--alpha", "0.42", "-n", "3", "--library-dir", "no/such/library"], "no/such/library/cr3bp/provenance.json"),
+        (["--alpha", "0.42", "-n", "3", "--sampler", "amorgs", "--models-dir", "no/such/models"], "no/such/models/"),
+    ],
+)
+def test_bad_input_is_one_line_without_traceback(args, names, tmp_path):
+    proc = amorgs("design", *args, "--output", str(tmp_path / "out"), "--no-mlflow", timeout=300)
+    assert proc.returncode not in (0, 3)
+    assert "Traceback" not in proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("amorgs design:") and names in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()

@@ -1,0 +1,80 @@
+"""CR3BP solver/transcription options: validation, α step law, stored-vector clipping (no IPOPT solves)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from amorgs.problems import get_problem
+from amorgs.problems.cr3bp.problem import SolverOptions, cpu_identity
+from amorgs.problems.cr3bp.transcription import ForwardBackwardTranscription, TranscriptionOptions
+
+
+def test_defaults_validate_and_hash_changes_with_new_fields():
+    base = SolverOptions.from_dict({})
+    assert base.stall_window >= 0 and 0 < base.stall_factor <= 1
+    assert "-ffp-contract=off" in base.compile_flags
+    assert SolverOptions.from_dict({"compile_flags": "-O2"}).digest() != base.digest()
+    assert SolverOptions.from_dict({"stall_window": 0}).digest() != base.digest()
+    assert SolverOptions.from_dict({"ipopt_options": {"mu_strategy": "monotone"}}).digest() != base.digest()
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"stall_window": -1},
+        {"stall_window": 1.5},
+        {"stall_factor": 0.0},
+        {"stall_factor": 2.0},
+        {"stall_floor": -1e-6},
+        {"compile_flags": ""},
+        {"ipopt_options": ["mu_strategy"]},
+        {"transcription": {"min_steps_per_segment": 0}},
+        {"transcription": {"no_such_option": 1}},
+        {"no_such_option": 1},
+    ],
+)
+def test_invalid_options_raise(bad):
+    with pytest.raises(ValueError):
+        SolverOptions.from_dict(bad)
+
+
+def test_step_law_up_and_optionally_down():
+    up_only = TranscriptionOptions(steps_per_segment=24, step_scaling_alpha=0.3)
+    assert up_only.for_alpha(0.1).steps_per_segment == 42
+    assert up_only.for_alpha(1.0).steps_per_segment == 24
+    both = TranscriptionOptions(steps_per_segment=24, step_scaling_alpha=0.3, scale_down=True, min_steps_per_segment=16)
+    assert both.for_alpha(0.1).steps_per_segment == 42
+    assert both.for_alpha(0.5).steps_per_segment == math.ceil(24 * math.sqrt(0.3 / 0.5))  # 19
+    assert both.for_alpha(1.0).steps_per_segment == 16  # 14 from the law, raised to the floor
+    resolved = both.for_alpha(1.0)
+    assert resolved.step_scaling_alpha == 0.0 and not resolved.scale_down
+    assert resolved.for_alpha(0.1) == resolved  # resolving twice is a no-op
+
+
+def test_to_stored_clips_times_and_mass_into_the_box():
+    problem = get_problem("cr3bp")
+    tr = ForwardBackwardTranscription(
+        problem.initial_state, problem.terminal_state,
+        TranscriptionOptions(steps_per_segment=1, steps_per_coast=8, step_scaling_alpha=0.0),
+    )
+    x = problem.sample_uniform(1.0, 1, np.random.default_rng(0))[0]
+    w = tr.to_internal(x, 1.0)
+    lo, hi = tr.bounds()
+    # IPOPT's bound relaxation: a few 1e-9 outside the box on every bounded core variable.
+    w_low, w_high = w.copy(), w.copy()
+    w_low[:4] = lo[:4] - 9e-9
+    w_high[:4] = hi[:4] + 9e-9
+    w_low[6::3], w_high[6::3] = -9e-9, 1 + 9e-9
+    for v in (w_low, w_high):
+        stored = tr.to_stored(v)
+        assert np.all(stored >= problem.lower) and np.all(stored <= problem.upper)
+        problem.check_guess(stored)  # a valid warm start
+    np.testing.assert_array_equal(tr.to_stored(w_low)[:4], problem.lower[:4])
+    np.testing.assert_array_equal(tr.to_stored(w_high)[:4], problem.upper[:4])
+    # Inside the box nothing changes (round trip of an interior point).
+    np.testing.assert_allclose(tr.to_stored(w), x, rtol=1e-12, atol=1e-12)
+
+
+def test_cpu_identity_is_a_stable_string():
+    assert cpu_identity() == cpu_identity() and isinstance(cpu_identity(), str)
