@@ -592,23 +592,73 @@ def cmd_check_outputs(args: argparse.Namespace) -> None:
 # ------------------------------------------------------------------------------------------- parser
 
 
+#: One example per subcommand, shown in its ``--help`` epilog (the rules' own command lines, shortened).
+_EXAMPLES = {
+    "generate": "amorgs generate --problem dejong --alpha 0.2 --shard 0 --seed 7 --starts 40 \\\n"
+    "      --output results/dejong/solutions/alpha=0.200/shard-0.parquet",
+    "merge": "amorgs merge --problem cr3bp --alpha 0.150 \\\n"
+    "      --inputs results/cr3bp/solutions/alpha=0.150/shard-*.parquet \\\n"
+    "      --output results/cr3bp/solutions/alpha=0.150.parquet",
+    "filter": "amorgs filter --problem cr3bp --inputs results/cr3bp/solutions/alpha=*.parquet \\\n"
+    "      --min-final-mass-kg 415 --output results/cr3bp/high_quality.parquet \\\n"
+    "      --report results/cr3bp/quality_report.json",
+    "train-dejong-cvae": "amorgs train-dejong-cvae --data results/dejong/high_quality.parquet --train-alphas 0 0.5 1 \\\n"
+    "      --preset small --learning-rate 1e-3 --epochs 100 --batch-size 256 --seed 0 \\\n"
+    "      --output results/dejong/models/cvae_gmm.pt",
+    "predict-dejong-cvae": "amorgs predict-dejong-cvae --model results/dejong/models/cvae_gmm.pt --test-alphas 0.349 \\\n"
+    "      --n-samples 500 --seed 0 --radius 2 --samples samples.parquet --metrics metrics.json",
+    "fig02-foxholes": "amorgs fig02-foxholes --output results/figures/fig02_foxholes.png",
+    "fig16-dejong-predictions": "amorgs fig16-dejong-predictions --data results/dejong/high_quality.parquet \\\n"
+    "      --samples results/dejong/predictions/samples.parquet --train-alphas 0 0.5 1 \\\n"
+    "      --output results/figures/fig16_dejong_predictions.png",
+    "analyze-cr3bp": "amorgs analyze-cr3bp --inputs results/cr3bp/solutions/alpha=*.parquet \\\n"
+    "      --high-quality results/cr3bp/high_quality.parquet --beta 415 --metrics metrics.json \\\n"
+    "      --tables-dir results/cr3bp/analysis --figures-dir results/figures",
+    "train-cr3bp": "amorgs train-cr3bp --data results/cr3bp/high_quality.parquet --model lstm --train-alphas 0.1 0.2 \\\n"
+    "      --preset small --learning-rate 1e-3 --epochs 500 --batch-size 256 --seed 0 \\\n"
+    "      --output results/cr3bp/models/lstm.pt",
+    "predict-cr3bp": "amorgs predict-cr3bp --models-dir results/cr3bp/models --high-quality results/cr3bp/high_quality.parquet \\\n"
+    "      --test-alphas 0.15 0.85 --n-samples 200 --seed 0 --samples samples.parquet \\\n"
+    "      --metrics metrics.json --figures-dir results/figures",
+    "ablation-cell": "amorgs ablation-cell --alpha 0.15 --sampler amorgs --models-dir results/cr3bp/models \\\n"
+    "      --starts 24 --seed 1 --output results/cr3bp/ablation/alpha=0.150/amorgs.parquet",
+    "ablation-report": "amorgs ablation-report --cells results/cr3bp/ablation/alpha=*/*.parquet \\\n"
+    "      --high-quality results/cr3bp/high_quality.parquet --beta 415 --summary summary.json \\\n"
+    "      --table6-csv table6.csv --table6-md table6.md --capped capped.csv --coverage coverage.csv \\\n"
+    "      --figures-dir results/figures",
+    "library-export": "amorgs library-export --solutions-dir results/cr3bp/solutions --library-dir data/library",
+    "boundary-conditions": "amorgs boundary-conditions --check     # recompute and compare with the stored resource",
+    "ui": "amorgs ui --port 5000     # then browse http://127.0.0.1:5000",
+    "check-outputs": "amorgs check-outputs --config config/smoke.yaml   # exit 0: complete; 1: missing or broken;\n"
+    "                                                    # 3: complete but untracked in MLflow",
+}
+
+
+def _add_examples(sub: argparse._SubParsersAction) -> None:
+    """Show each subcommand's example (:data:`_EXAMPLES`) in its epilog, unless it has an epilog already."""
+    for name, parser in sub.choices.items():
+        parser.formatter_class = argparse.RawDescriptionHelpFormatter
+        if not parser.epilog and name in _EXAMPLES:
+            parser.epilog = "example:\n  " + _EXAMPLES[name]
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="amorgs", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("generate", help="multi-start solves of one (problem, α, shard) → parquet")
-    p.add_argument("--problem", required=True, choices=("dejong", "cr3bp"))
+    p.add_argument("--problem", required=True, choices=("dejong", "cr3bp"), help="problem family: dejong or cr3bp")
     p.add_argument("--alpha", required=True, type=float, help="α (the exact value; the label is derived)")
-    p.add_argument("--shard", required=True, type=int)
+    p.add_argument("--shard", required=True, type=int, help="shard index k (part of the output path and of the seed)")
     p.add_argument("--seed", required=True, type=int, help="seed of this shard (see amorgs.data.seeds)")
     p.add_argument("--starts", required=True, type=int, help="uniform initial guesses in this shard")
     p.add_argument("--workers", type=int, default=1, help="solver processes")
     p.add_argument("--solver-options", default="{}", help="JSON object of solver options")
-    p.add_argument("--output", required=True)
+    p.add_argument("--output", required=True, help="shard table to write (parquet)")
     p.set_defaults(func=cmd_generate)
 
     p = sub.add_parser("merge", help="merge the shard tables of one (problem, α)")
-    p.add_argument("--problem", required=True, choices=("dejong", "cr3bp"))
+    p.add_argument("--problem", required=True, choices=("dejong", "cr3bp"), help="problem family: dejong or cr3bp")
     p.add_argument("--alpha", required=True, help="α label, e.g. 0.150")
     p.add_argument("--inputs", required=True, nargs="+", help="fresh shard tables (source = fresh)")
     p.add_argument("--library", nargs="*", default=[],
@@ -620,91 +670,91 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_merge)
 
     p = sub.add_parser("filter", help="β-filter every α table of a problem; write a quality report")
-    p.add_argument("--problem", required=True, choices=("dejong", "cr3bp"))
-    p.add_argument("--inputs", required=True, nargs="+")
+    p.add_argument("--problem", required=True, choices=("dejong", "cr3bp"), help="problem family: dejong or cr3bp")
+    p.add_argument("--inputs", required=True, nargs="+", help="merged α tables (results/{problem}/solutions/alpha=*.parquet)")
     p.add_argument("--min-final-mass-kg", type=float, help="β on the final mass m_f (kg)")
     p.add_argument("--max-objective", type=float, help="keep objective ≤ this")
-    p.add_argument("--output", required=True)
-    p.add_argument("--report", required=True)
+    p.add_argument("--output", required=True, help="high-quality table to write (parquet)")
+    p.add_argument("--report", required=True, help="quality report JSON to write (rows, converged, high-quality per α)")
     p.set_defaults(func=cmd_filter)
 
     p = sub.add_parser("train-dejong-cvae", help="train the GMM-prior CVAE on the De Jong minima")
     p.add_argument("--data", required=True, help="high_quality.parquet")
-    p.add_argument("--train-alphas", required=True, type=float, nargs="+")
-    p.add_argument("--preset", required=True, choices=("dejong_paper", "small"))
-    p.add_argument("--learning-rate", required=True, type=float)
-    p.add_argument("--epochs", required=True, type=int)
-    p.add_argument("--batch-size", required=True, type=int)
-    p.add_argument("--seed", required=True, type=int)
+    p.add_argument("--train-alphas", required=True, type=float, nargs="+", help="training α values (rows at other α are left out)")
+    p.add_argument("--preset", required=True, choices=("dejong_paper", "small"), help="network size: dejong_paper (Table 3) or small")
+    p.add_argument("--learning-rate", required=True, type=float, help="Adam learning rate")
+    p.add_argument("--epochs", required=True, type=int, help="passes over the training rows")
+    p.add_argument("--batch-size", required=True, type=int, help="rows per mini-batch (the row count or more: full batch)")
+    p.add_argument("--seed", required=True, type=int, help="random seed (weights, noise, shuffling or sampling)")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
-    p.add_argument("--output", required=True)
+    p.add_argument("--output", required=True, help="checkpoint to write (.pt)")
     p.set_defaults(func=cmd_train_dejong_cvae)
 
     p = sub.add_parser("predict-dejong-cvae", help="sample the CVAE at the test α and score the samples")
-    p.add_argument("--model", required=True)
-    p.add_argument("--test-alphas", required=True, type=float, nargs="+")
-    p.add_argument("--n-samples", required=True, type=int)
-    p.add_argument("--seed", required=True, type=int)
-    p.add_argument("--radius", required=True, type=float)
-    p.add_argument("--samples", required=True)
-    p.add_argument("--metrics", required=True)
+    p.add_argument("--model", required=True, help="trained CVAE checkpoint (cvae_gmm.pt)")
+    p.add_argument("--test-alphas", required=True, type=float, nargs="+", help="held-out α values to sample at")
+    p.add_argument("--n-samples", required=True, type=int, help="samples per test α")
+    p.add_argument("--seed", required=True, type=int, help="random seed (weights, noise, shuffling or sampling)")
+    p.add_argument("--radius", required=True, type=float, help="a sample within this distance of a true minimum counts as a hit")
+    p.add_argument("--samples", required=True, help="samples parquet to write")
+    p.add_argument("--metrics", required=True, help="metrics JSON to write")
     p.set_defaults(func=cmd_predict_dejong_cvae)
 
     p = sub.add_parser("fig02-foxholes", help="Fig. 2: the classic 25-foxhole De Jong function")
-    p.add_argument("--output", required=True)
+    p.add_argument("--output", required=True, help="PNG to write")
     p.set_defaults(func=cmd_fig02_foxholes)
 
     p = sub.add_parser("fig16-dejong-predictions", help="Fig. 16: De Jong training minima and CVAE samples")
     p.add_argument("--data", required=True, help="high_quality.parquet (training minima)")
     p.add_argument("--samples", required=True, help="predicted samples parquet")
-    p.add_argument("--train-alphas", required=True, type=float, nargs="+")
-    p.add_argument("--output", required=True)
+    p.add_argument("--train-alphas", required=True, type=float, nargs="+", help="training α values (rows at other α are left out)")
+    p.add_argument("--output", required=True, help="PNG to write")
     p.set_defaults(func=cmd_fig16_dejong_predictions)
 
     p = sub.add_parser("analyze-cr3bp", help="structure analysis of the CR3BP solutions, Figs. 3-13")
     p.add_argument("--inputs", required=True, nargs="+", help="merged α tables (every solve)")
-    p.add_argument("--high-quality", required=True)
+    p.add_argument("--high-quality", required=True, help="high_quality.parquet of the problem")
     p.add_argument("--beta", required=True, type=float, help="β, the final-mass threshold (kg)")
     p.add_argument("--params", default="{}", help="JSON object of StructureParams fields")
-    p.add_argument("--metrics", required=True)
-    p.add_argument("--tables-dir", required=True)
-    p.add_argument("--figures-dir", required=True)
+    p.add_argument("--metrics", required=True, help="metrics JSON to write")
+    p.add_argument("--tables-dir", required=True, help="folder for the analysis tables (parquet)")
+    p.add_argument("--figures-dir", required=True, help="folder for the figures (PNG)")
     p.set_defaults(func=cmd_analyze_cr3bp)
 
     p = sub.add_parser("train-cr3bp", help="train one CR3BP model on the high-quality rows at the training α")
     p.add_argument("--data", required=True, help="high_quality.parquet")
-    p.add_argument("--train-alphas", required=True, type=float, nargs="+")
-    p.add_argument("--model", required=True, choices=("cvae_gmm", "vanilla_cvae", "lstm"))
+    p.add_argument("--train-alphas", required=True, type=float, nargs="+", help="training α values (rows at other α are left out)")
+    p.add_argument("--model", required=True, choices=("cvae_gmm", "vanilla_cvae", "lstm"), help="which model: cvae_gmm, vanilla_cvae or lstm")
     p.add_argument("--fraction", type=float, help="train on this fraction of the rows of every α (Fig. 18)")
     p.add_argument("--fraction-label", help="the fraction as in the output path (with --fraction)")
-    p.add_argument("--preset", required=True, choices=("paper", "small"))
-    p.add_argument("--learning-rate", required=True, type=float)
-    p.add_argument("--epochs", required=True, type=int)
-    p.add_argument("--batch-size", required=True, type=int)
-    p.add_argument("--seed", required=True, type=int)
+    p.add_argument("--preset", required=True, choices=("paper", "small"), help="network size: paper (Tables 4-5) or small")
+    p.add_argument("--learning-rate", required=True, type=float, help="Adam learning rate")
+    p.add_argument("--epochs", required=True, type=int, help="passes over the training rows")
+    p.add_argument("--batch-size", required=True, type=int, help="rows per mini-batch (the row count or more: full batch)")
+    p.add_argument("--seed", required=True, type=int, help="random seed (weights, noise, shuffling or sampling)")
     p.add_argument("--replicate", action="store_true",
                    help="a replicate of an extra training seed (tracked as train_cr3bp_replicate, wildcard mseed = --seed)")
     p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
-    p.add_argument("--output", required=True)
+    p.add_argument("--output", required=True, help="checkpoint to write (.pt)")
     p.set_defaults(func=cmd_train_cr3bp)
 
     p = sub.add_parser("predict-cr3bp", help="sample the CR3BP models at the test α; Figs. 17-20")
     p.add_argument("--models-dir", required=True, help="folder of cvae_gmm.pt, vanilla_cvae.pt, lstm.pt")
     p.add_argument("--fraction-models", nargs="*", default=[], help="FRACTION=PATH of the reduced-data GMM-CVAEs")
     p.add_argument("--high-quality", required=True, help="ground truth: its rows at the test α")
-    p.add_argument("--test-alphas", required=True, type=float, nargs="+")
-    p.add_argument("--n-samples", required=True, type=int)
-    p.add_argument("--seed", required=True, type=int)
-    p.add_argument("--samples", required=True)
-    p.add_argument("--metrics", required=True)
-    p.add_argument("--figures-dir", required=True)
+    p.add_argument("--test-alphas", required=True, type=float, nargs="+", help="held-out α values to sample at")
+    p.add_argument("--n-samples", required=True, type=int, help="samples per test α")
+    p.add_argument("--seed", required=True, type=int, help="random seed (weights, noise, shuffling or sampling)")
+    p.add_argument("--samples", required=True, help="samples parquet to write")
+    p.add_argument("--metrics", required=True, help="metrics JSON to write")
+    p.add_argument("--figures-dir", required=True, help="folder for the figures (PNG)")
     p.set_defaults(func=cmd_predict_cr3bp)
 
     from amorgs.ablation.arms import SAMPLER_NAMES
 
     p = sub.add_parser("ablation-cell", help="solve the guesses of one sampler at one test α")
-    p.add_argument("--alpha", required=True, type=float)
-    p.add_argument("--sampler", required=True, choices=SAMPLER_NAMES)
+    p.add_argument("--alpha", required=True, type=float, help="test α of this cell")
+    p.add_argument("--sampler", required=True, choices=SAMPLER_NAMES, help="warm-start sampler of the cell")
     p.add_argument("--models-dir", help="folder of the checkpoints (the arms that load a model)")
     p.add_argument("--high-quality", help="filtered high-quality table (nearest_alpha, nearest_alpha_perturbed, gmm_lstm)")
     p.add_argument("--train-alphas", type=float, nargs="+", help="the training α: the only rows those arms may use")
@@ -712,35 +762,35 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gmm-components", type=int, default=5, help="mixture components per training α of gmm_lstm")
     p.add_argument("--model-seed", type=int, help="training seed of the models (written to the model_seed column)")
     p.add_argument("--replicate", action="store_true", help="a replicate cell of an extra model seed (MLflow rule name)")
-    p.add_argument("--starts", required=True, type=int)
-    p.add_argument("--seed", required=True, type=int)
-    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--starts", required=True, type=int, help="initial guesses (solves) in this cell")
+    p.add_argument("--seed", required=True, type=int, help="random seed (weights, noise, shuffling or sampling)")
+    p.add_argument("--workers", type=int, default=1, help="solver processes")
     p.add_argument("--solver-options", default="{}", help="JSON object of solver options")
-    p.add_argument("--output", required=True)
+    p.add_argument("--output", required=True, help="cell table to write (parquet)")
     p.set_defaults(func=cmd_ablation_cell)
 
     p = sub.add_parser("ablation-report", help="Table 6, capped study, coverage and Figs. 21-23")
-    p.add_argument("--cells", required=True, nargs="+")
-    p.add_argument("--high-quality", required=True)
-    p.add_argument("--beta", required=True, type=float)
-    p.add_argument("--summary", required=True)
-    p.add_argument("--table6-csv", required=True)
-    p.add_argument("--table6-md", required=True)
-    p.add_argument("--capped", required=True)
-    p.add_argument("--coverage", required=True)
+    p.add_argument("--cells", required=True, nargs="+", help="ablation cell tables (results/cr3bp/ablation/alpha=*/*.parquet)")
+    p.add_argument("--high-quality", required=True, help="high_quality.parquet of the problem")
+    p.add_argument("--beta", required=True, type=float, help="β, the final-mass threshold of a high-quality solution (kg)")
+    p.add_argument("--summary", required=True, help="summary JSON to write (every metric of the report)")
+    p.add_argument("--table6-csv", required=True, help="Table 6 as CSV to write")
+    p.add_argument("--table6-md", required=True, help="Table 6 as Markdown to write")
+    p.add_argument("--capped", required=True, help="capped-budget study CSV to write")
+    p.add_argument("--coverage", required=True, help="coverage-of-the-true-solutions CSV to write")
     p.add_argument("--tables-dir", help="folder of the issue-11 tables (default: the folder of --table6-csv)")
     p.add_argument("--beta-sweep", type=float, nargs="*", default=[], help="extra β (kg) of the rate sweep")
     p.add_argument("--iteration-caps", type=int, nargs="*", default=[], help="iteration caps fixed before the solves")
     p.add_argument("--max-iter", type=int, help="the solver's max_iter (caps may not exceed it)")
     p.add_argument("--n-boot", type=int, default=2000, help="bootstrap resamples")
     p.add_argument("--seed", type=int, default=0, help="bootstrap seed")
-    p.add_argument("--figures-dir", required=True)
+    p.add_argument("--figures-dir", required=True, help="folder for the figures (PNG)")
     p.set_defaults(func=cmd_ablation_report)
 
     p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library")
-    p.add_argument("--problem", default="cr3bp", choices=("dejong", "cr3bp"))
+    p.add_argument("--problem", default="cr3bp", choices=("dejong", "cr3bp"), help="problem whose shards are exported")
     p.add_argument("--solutions-dir", default="results/cr3bp/solutions", help="where the generate rule wrote the shards")
-    p.add_argument("--library-dir", default="data/library")
+    p.add_argument("--library-dir", default="data/library", help="library root (data/library)")
     p.add_argument("--config", default="config/library.yaml", help="the config that generated them (provenance)")
     p.set_defaults(func=cmd_library_export)
 
@@ -807,15 +857,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_design)
 
     p = sub.add_parser("ui", help="open the MLflow UI on results/mlflow")
-    p.add_argument("--host", default="127.0.0.1")
-    p.add_argument("--port", type=int, default=5000)
+    p.add_argument("--host", default="127.0.0.1", help="address the UI listens on")
+    p.add_argument("--port", type=int, default=5000, help="port the UI listens on")
     p.set_defaults(func=cmd_ui)
 
     p = sub.add_parser("check-outputs", help="check that every output of a config exists, is non-empty and tracked")
     p.add_argument("--config", required=True, help="config file, e.g. config/smoke.yaml")
-    p.add_argument("--schema", default=str(SCHEMA_PATH))
+    p.add_argument("--schema", default=str(SCHEMA_PATH), help="JSON Schema of the config (default: the workflow's)")
     p.add_argument("--no-mlflow", action="store_true", help="skip the MLflow checks")
     p.set_defaults(func=cmd_check_outputs)
+    _add_examples(sub)
     return parser
 
 

@@ -349,7 +349,7 @@ class JobRun:
             with warnings.catch_warnings():  # MLflow's own notes on source resolution and pandas deprecations
                 warnings.simplefilter("ignore")
                 ds = mlflow.data.from_pandas(df, source=Path(path).resolve().as_uri(), name=Path(path).name)
-            entity = DatasetInput(ds._to_mlflow_entity(), tags=[InputTag("mlflow.data.context", context)])
+                entity = DatasetInput(ds._to_mlflow_entity(), tags=[InputTag("mlflow.data.context", context)])
         except Exception as exc:  # noqa: BLE001 — tracking never fails a job
             _warn("describing a dataset", exc)
             return

@@ -93,19 +93,26 @@ def ui(tracked_store):
             proc.wait()
 
 
-def chromium(url: str, out: Path, *, screenshot: bool = True, wait_ms: int = 15000) -> str:
-    """Render ``url`` in headless Chromium; return the DOM after ``wait_ms`` of page time, save a screenshot."""
+def chromium(url: str, out: Path, expect: tuple[str, ...], attempts: int = 4) -> str:
+    """Render ``url`` in headless Chromium and return its DOM; save a screenshot to ``out``.
+
+    The single-page app fetches its data after loading, so the page gets 15 s of page time, and again with
+    more until every string of ``expect`` is in the DOM (a cold UI answers its first requests slowly).
+    """
     if CHROMIUM is None:
         pytest.skip("chromium is not installed (Debian: apt-get install chromium; .ci/run does it as root)")
-    base = [
-        CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars",
-        f"--user-data-dir={out.parent / 'chromium-profile'}", "--window-size=1600,1000",
-        f"--virtual-time-budget={wait_ms}", "--run-all-compositor-stages-before-draw",
-    ]
-    dom = subprocess.run([*base, "--dump-dom", url], capture_output=True, text=True, timeout=180).stdout
-    if screenshot:
-        subprocess.run([*base, f"--screenshot={out}", url], capture_output=True, timeout=180)
-        assert out.is_file() and out.stat().st_size > 10_000, f"no screenshot of {url}"
+    dom = ""
+    for attempt in range(1, attempts + 1):
+        base = [
+            CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars",
+            f"--user-data-dir={out.parent / 'chromium-profile'}", "--window-size=1600,1000",
+            f"--virtual-time-budget={15000 * attempt}", "--run-all-compositor-stages-before-draw",
+        ]
+        dom = subprocess.run([*base, "--dump-dom", url], capture_output=True, text=True, timeout=300).stdout
+        if all(e in dom for e in expect):
+            break
+    subprocess.run([*base, f"--screenshot={out}", url], capture_output=True, timeout=300)
+    assert out.is_file() and out.stat().st_size > 10_000, f"no screenshot of {url}"
     return dom
 
 
@@ -116,12 +123,12 @@ def test_experiment_lists_the_workflow_run_and_its_job_runs(tracked_store, ui, t
     parent = client.get_run(tracked_store["parent"])
     exp_id = parent.info.experiment_id
     # the experiment's runs table: the workflow run, its job runs folded under it (3 runs in all)
-    dom = chromium(f"{ui}/#/experiments/{exp_id}/runs", tmp_path / "experiment_runs.png")
+    dom = chromium(f"{ui}/#/experiments/{exp_id}/runs", tmp_path / "experiment_runs.png", ("matching runs",))
     assert EXPERIMENT in dom
     assert parent.info.run_name in dom, "the workflow run is not listed"
     assert "<strong>3</strong> matching runs" in dom
     # the workflow run's page names its job runs
-    dom = chromium(f"{ui}/#/experiments/{exp_id}/runs/{parent.info.run_id}", tmp_path / "workflow_run.png")
+    dom = chromium(f"{ui}/#/experiments/{exp_id}/runs/{parent.info.run_id}", tmp_path / "workflow_run.png", ("Child runs",))
     assert parent.info.run_name in dom and "Finished" in dom
     assert "Child runs" in dom
     for child in ("filter problem=dejong", "generate problem=dejong alpha=0.200 shard=0"):
@@ -135,7 +142,7 @@ def test_artifact_page_shows_the_figure(tracked_store, ui, tmp_path):
     exp_id = client.get_run(tracked_store["parent"]).info.experiment_id
     (job,) = client.search_runs([exp_id], "tags.rule = 'filter'")
     url = f"{ui}/#/experiments/{exp_id}/runs/{job.info.run_id}/artifacts/figures/fig99_test.png"
-    dom = chromium(url, tmp_path / "artifact.png")
+    dom = chromium(url, tmp_path / "artifact.png", ('alt="figures/fig99_test.png"',))
     assert "filter problem=dejong" in dom
     assert '<img alt="figures/fig99_test.png" src="blob:' in dom, "the figure is not displayed"
     # the image the page shows is the logged PNG

@@ -169,6 +169,13 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
         history = client.get_metric_history(train.info.run_id, "loss")
         assert [m.step for m in history] == list(range(1, cfg.cr3bp_models.epochs + 1))
         assert [a.path for a in client.list_artifacts(train.info.run_id, "models")] == [f"models/{model}.pt"]
+        # the checkpoint is a logged model, its metrics linked; the training table is a `training` dataset
+        (output,) = train.outputs.model_outputs
+        assert output.step == cfg.cr3bp_models.epochs
+        logged = client.get_logged_model(output.model_id)
+        assert logged.name == model and "loss" in {m.key for m in logged.metrics}
+        contexts = {(d.dataset.name, {t.key: t.value for t in d.tags}["mlflow.data.context"]) for d in train.inputs.dataset_inputs}
+        assert contexts == {("high_quality.parquet", "training")}
         assert json.loads(train.data.params["train_alphas"]) == ["0.700", "0.800", "0.900"]
     full_rows = int(child("train_cr3bp", model="cvae_gmm").data.params["rows"])
     assert int(child("train_cr3bp_fraction", fraction="0.1").data.params["rows"]) < full_rows
@@ -180,6 +187,8 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
     cell = child("ablation_cell", alpha="0.150", sampler="amorgs").data.metrics
     assert cell["starts"] == cfg.ablation.n_starts
     report_run = child("ablation_report")
+    assert [d.dataset.name for d in report_run.inputs.dataset_inputs] == ["high_quality.parquet"]
+    assert len(child("filter", problem="cr3bp").inputs.dataset_inputs) == len(cfg.problems.cr3bp.alpha_values())
     assert any(k.startswith("percent_hq_") for k in report_run.data.metrics)
     assert {a.path for a in client.list_artifacts(report_run.info.run_id, "figures")} == {
         f"figures/{n}.png" for n in layout.ABLATION_FIGURES

@@ -12,8 +12,8 @@ from amorgs.config import load_workflow_config
 from amorgs.data.library import library_files as _library_files
 from amorgs.data.seeds import cell_seed, shard_seed
 
-
 CFG = load_workflow_config(config, workflow.configfiles, workflow.source_path("../schemas/config.schema.yaml"))
+
 
 # Jobs run `python -m amorgs ...`: unless a conda environment provides it, that `python` is the interpreter
 # running Snakemake (so `.venv/bin/snakemake` works without activating the venv, here and on SLURM nodes).

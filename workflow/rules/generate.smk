@@ -8,17 +8,17 @@ rule generate:
         layout.SHARD,
     log:
         "logs/generate/{problem}/alpha={alpha}/shard-{shard}.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: lambda w: problem_cfg(w).generate.workers
+    resources:
+        mem_mb=lambda w: problem_cfg(w).generate.mem_mb,
+        runtime=lambda w: problem_cfg(w).generate.runtime_min,
     params:
         alpha=alpha_value,
         seed=seed_of_shard,
         starts=lambda w: problem_cfg(w).generate.starts_per_shard,
         solver=solver_options,
-    threads: lambda w: problem_cfg(w).generate.workers
-    resources:
-        mem_mb=lambda w: problem_cfg(w).generate.mem_mb,
-        runtime=lambda w: problem_cfg(w).generate.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
     shell:
         "python -m amorgs generate --problem {wildcards.problem} --alpha {params.alpha} "
         "--shard {wildcards.shard} --seed {params.seed} --starts {params.starts} --workers {threads} "
@@ -33,14 +33,14 @@ rule merge:
         layout.ALPHA_TABLE,
     log:
         "logs/merge/{problem}/alpha={alpha}.log",
-    params:
-        library=library_arguments,
+    conda:
+        "../envs/amorgs.yaml"
     threads: CFG.resources.merge.threads
     resources:
         mem_mb=CFG.resources.merge.mem_mb,
         runtime=CFG.resources.merge.runtime_min,
-    conda:
-        "../envs/amorgs.yaml"
+    params:
+        library=library_arguments,
     shell:
         "python -m amorgs merge --problem {wildcards.problem} --alpha {wildcards.alpha} "
         "--inputs {input.fresh} --library {input.library} {params.library} --output {output} > {log} 2>&1"

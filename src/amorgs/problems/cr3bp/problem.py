@@ -66,7 +66,7 @@ class SolverOptions:
     feasibility_tol: float = 1e-8
     verify_tol: float = VERIFY_TOLERANCE
     linear_solver: str = "mumps"
-    stall_window: int = 300
+    stall_window: int = 0
     stall_factor: float = 0.5
     stall_floor: float = 1e-6
     compile: str = "cache"  # "cache": C code compiled once per machine; "jit": per process; "none"
