@@ -850,8 +850,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--models-dir", default="data/models/cr3bp", help="checkpoints of the learned samplers")
     p.add_argument("--config", default="config/default.yaml",
                    help="config giving the solver options (problems.cr3bp.solver), training α and filter β")
-    p.add_argument("--mlflow-dir", default="results/mlflow/design",
-                   help="MLflow store of design calls (its own SQLite database; default results/mlflow/design)")
+    p.add_argument("--mlflow-dir", default="results/mlflow",
+                   help="MLflow store of the design run (default: the workflow's store, so `amorgs ui` shows it)")
     p.add_argument("--no-mlflow", action="store_true", help="do not mirror the call to MLflow")
     p.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=cmd_design)

@@ -443,7 +443,7 @@ Frames and time
 
 #: The MLflow store of ``amorgs design`` calls: its own SQLite database beside the workflow's, so that a design
 #: never touches a running workflow's invocation (``results/mlflow/invocation.json``).
-DESIGN_STORE_DIR = Path("results/mlflow/design")
+DESIGN_STORE_DIR = Path("results/mlflow")  # the workflow's store: `amorgs ui` shows designs beside workflow runs
 DESIGN_EXPERIMENT = "amorgs-design"
 
 
@@ -491,14 +491,13 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
                store_dir: str | Path = DESIGN_STORE_DIR, progress: bool = True) -> tuple[DesignResult, dict]:
     """``amorgs design``: prepare (errors before any solve), search, write the outputs, mirror it to MLflow.
 
-    MLflow (unless ``track`` is false or the config's ``mlflow.enabled`` is false): one tracked run per call in
-    experiment :data:`DESIGN_EXPERIMENT` of the store ``store_dir`` — through :mod:`amorgs.tracking`'s public
-    API that is a parent run holding the request as parameters and one ``design`` job run under it holding
-    the parameters, the metrics (per round and final: found, starts, CPU s, wall s …) and the artifacts (tables,
-    plot, summary, trajectory CSV and OEM files).  Returns the result and the written paths by kind.
+    MLflow (unless ``track`` is false or the config's ``mlflow.enabled`` is false): one run per call
+    (:func:`amorgs.tracking.standalone_run`) in experiment :data:`DESIGN_EXPERIMENT` of the store
+    ``store_dir``, holding the request as parameters, the metrics (per round and final: found, starts, CPU s,
+    wall s …) and the artifacts (tables, plot, summary, trajectory CSV and OEM files); it ends FINISHED,
+    KILLED (Ctrl-C) or FAILED.  Returns the result and the written paths by kind.
     """
-    import hashlib
-    import json
+    from contextlib import nullcontext
 
     prepared = prepare(request)
     out = Path(output_dir) if output_dir is not None else default_output_dir(request.alpha)
@@ -506,19 +505,14 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
     track = track and bool(prepared.cfg.mlflow.enabled)
     from amorgs import tracking
 
-    if track:
-        digest = hashlib.sha256(json.dumps(params, sort_keys=True, default=str).encode()).hexdigest()[:12]
-        tracking.start_invocation(params, digest, DESIGN_EXPERIMENT, [request.config], store_dir=store_dir,
-                                  uri=prepared.cfg.mlflow.tracking_uri)
-    status = "FAILED"
     bar = ProgressLine(request) if progress else None
+    if track:
+        context = tracking.standalone_run(f"design alpha={alpha_label(request.alpha)}", DESIGN_EXPERIMENT,
+                                          store_dir=store_dir, uri=prepared.cfg.mlflow.tracking_uri,
+                                          tags={"rule": "design", "wildcard.alpha": alpha_label(request.alpha)})
+    else:
+        context = nullcontext(tracking.JobRun(Path(store_dir)))
     try:
-        if track:
-            context = tracking.job_run("design", {"alpha": alpha_label(request.alpha)}, store_dir=store_dir)
-        else:
-            from contextlib import nullcontext
-
-            context = nullcontext(tracking.JobRun(Path(store_dir)))
         with context as run:
             run.log_params(params)
 
@@ -540,13 +534,7 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
             for kind, files in paths.items():
                 for path in files:
                     run.log_artifact(path, kind)
-        status = "FINISHED"
-    except KeyboardInterrupt:
-        status = "KILLED"
-        raise
     finally:
         if bar is not None:
             bar.close()
-        if track:
-            tracking.finish_invocation(status, store_dir=store_dir)
     return result, paths

@@ -444,7 +444,13 @@ def job_run(rule: str, wildcards: dict[str, str], store_dir: str | Path = STORE_
     interrupted (SIGINT, or SIGTERM, which raises :class:`Killed` here; the process exits 128 + signal); FAILED
     if it raises anything else.
     """
-    job = _open_job_run(rule, wildcards, Path(store_dir))
+    with _closing(_open_job_run(rule, wildcards, Path(store_dir))) as job:
+        yield job
+
+
+@contextmanager
+def _closing(job: JobRun) -> Iterator[JobRun]:
+    """End ``job`` FINISHED, KILLED (SIGINT, or SIGTERM turned into :class:`Killed`) or FAILED."""
     previous = _catch_sigterm()
     try:
         yield job
@@ -458,6 +464,34 @@ def job_run(rule: str, wildcards: dict[str, str], store_dir: str | Path = STORE_
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
     job.close("FINISHED")
+
+
+@contextmanager
+def standalone_run(
+    name: str, experiment: str, store_dir: str | Path = STORE_DIR, uri: str | None = None, tags: dict | None = None
+) -> Iterator[JobRun]:
+    """One top-level MLflow run outside any workflow invocation (e.g. ``amorgs design``), with the same
+    :class:`JobRun` API and end states as :func:`job_run`; tagged with the git state and package versions.
+
+    It never reads or writes ``invocation.json``, so it can run beside a workflow on the same store.  The
+    tracking URI is :func:`resolve_tracking_uri` of ``uri``.  Untracked (with a warning) if MLflow fails.
+    """
+    store = Path(store_dir)
+    try:
+        resolved = resolve_tracking_uri(uri, store)
+        client = MlflowClient(resolved)
+        with _locked(store):
+            exp = client.get_experiment_by_name(experiment)
+            artifacts = (store / "artifacts").resolve().as_uri() if resolved == tracking_uri(store) else None
+            exp_id = exp.experiment_id if exp is not None else client.create_experiment(experiment, artifact_location=artifacts)
+            run_tags = {"kind": "standalone", "host": socket.gethostname(), **git_state(), **package_versions(), **(tags or {})}
+            run = client.create_run(exp_id, run_name=name, tags=run_tags)
+        job = JobRun(store, client, run.info.run_id, exp_id)
+    except Exception as exc:  # noqa: BLE001 — tracking never fails the command
+        _warn(f"opening the {name} run", exc)
+        job = JobRun(store)
+    with _closing(job) as opened:
+        yield opened
 
 
 class Killed(SystemExit):

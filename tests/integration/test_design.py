@@ -118,6 +118,8 @@ def test_design_is_one_mlflow_run_with_metrics_and_artifacts(designed):
     exp = client.get_experiment_by_name("amorgs-design")
     runs = client.search_runs([exp.experiment_id], filter_string="tags.rule = 'design'")
     assert len(runs) == 1
+    assert len(client.search_runs([exp.experiment_id])) == 1  # one run per call, no parent
+    assert runs[0].data.tags["git_commit"] and "version.casadi" in runs[0].data.tags
     run = runs[0]
     assert run.info.status == "FINISHED"
     assert run.data.metrics["found"] >= 2 and run.data.metrics["complete"] == 1.0

@@ -2,39 +2,6 @@
 # sampler with the CR3BP solver options — once with the models of cr3bp_models.seed, and once more per
 # cr3bp_models.extra_seeds (replicates: their own models, their own cell seed); then Table 6, the capped
 # studies, coverage, rates + Fisher tests, the β sweep, expected running time, anytime curves and figures.
-from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS
-
-
-def ablation_cell_inputs(wildcards, model_template=layout.CR3BP_MODEL):
-    """The checkpoints the {sampler} loads (none for uniform / nearest_alpha*) and, for the reuse baselines,
-    the filtered high-quality table (they draw from its training-α rows)."""
-    fmt = dict(wildcards.items())
-    inputs = {"models": [model_template.format(**{**fmt, "model": m}) for m in NEEDS_MODELS[wildcards.sampler]]}
-    if wildcards.sampler in NEEDS_HIGH_QUALITY:
-        inputs["high_quality"] = layout.HIGH_QUALITY.format(problem="cr3bp")
-    return inputs
-
-
-def ablation_cell_args(wildcards, input):
-    """The sampler-specific arguments of `amorgs ablation-cell`."""
-    args = []
-    if len(input.get("models", [])):
-        args.append(f"--models-dir {os.path.dirname(input.models[0])}")
-    if "high_quality" in input.keys():
-        a = CFG.ablation
-        args.append(
-            f"--high-quality {input.high_quality} --train-alphas {floats(CFG.problems.cr3bp.alphas.train_values())} "
-            f"--perturbation-scale {a.perturbation_scale!r} --gmm-components {a.gmm_components}"
-        )
-    return " ".join(args)
-
-
-def seed_of_replicate_cell(wildcards):
-    """The seed of one replicate cell: as seed_of_cell, with the model seed mixed into the sampler's name."""
-    alpha = CFG.problems.cr3bp.alpha_values()[wildcards.alpha]
-    return cell_seed(CFG.ablation.seed, "cr3bp", alpha, f"{wildcards.sampler}@seed={wildcards.mseed}")
-
-
 ABLATION_CELL_SHELL = (
     "python -m amorgs ablation-cell --alpha {params.alpha} --sampler {wildcards.sampler} {params.args} "
     "--model-seed {params.model_seed} {params.replicate} --starts {params.starts} --seed {params.seed} "

@@ -8,6 +8,7 @@ from pathlib import Path
 from snakemake_interface_executor_plugins.settings import DeploymentMethod
 
 from amorgs import layout
+from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS
 from amorgs.config import load_workflow_config
 from amorgs.data.library import library_files as _library_files
 from amorgs.data.seeds import cell_seed, shard_seed
@@ -114,3 +115,34 @@ def finish_tracking(status):
         from amorgs import tracking
 
         tracking.finish_invocation(status)
+
+
+# ---- ablation (rules in ablation.smk)
+def ablation_cell_inputs(wildcards, model_template=layout.CR3BP_MODEL):
+    """The checkpoints the {sampler} loads (none for uniform / nearest_alpha*) and, for the reuse baselines,
+    the filtered high-quality table (they draw from its training-α rows)."""
+    fmt = dict(wildcards.items())
+    inputs = {"models": [model_template.format(**{**fmt, "model": m}) for m in NEEDS_MODELS[wildcards.sampler]]}
+    if wildcards.sampler in NEEDS_HIGH_QUALITY:
+        inputs["high_quality"] = layout.HIGH_QUALITY.format(problem="cr3bp")
+    return inputs
+
+
+def ablation_cell_args(wildcards, input):
+    """The sampler-specific arguments of `amorgs ablation-cell`."""
+    args = []
+    if len(input.get("models", [])):
+        args.append(f"--models-dir {os.path.dirname(input.models[0])}")
+    if "high_quality" in input.keys():
+        a = CFG.ablation
+        args.append(
+            f"--high-quality {input.high_quality} --train-alphas {floats(CFG.problems.cr3bp.alphas.train_values())} "
+            f"--perturbation-scale {a.perturbation_scale!r} --gmm-components {a.gmm_components}"
+        )
+    return " ".join(args)
+
+
+def seed_of_replicate_cell(wildcards):
+    """The seed of one replicate cell: as seed_of_cell, with the model seed mixed into the sampler's name."""
+    alpha = CFG.problems.cr3bp.alpha_values()[wildcards.alpha]
+    return cell_seed(CFG.ablation.seed, "cr3bp", alpha, f"{wildcards.sampler}@seed={wildcards.mseed}")
