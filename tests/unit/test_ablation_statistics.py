@@ -199,3 +199,15 @@ def test_anytime_curves():
     assert c["best_m_f"].tolist() == [420.0, 420.0, 433.0, 433.0]
     assert c["distinct_optima"].tolist() == [1, 1, 2, 2]
     assert np.all(np.diff(c["cpu_s_cumulative"]) > 0)
+
+
+def test_fig22_iteration_capped_draws_when_no_ratio_is_defined():
+    """The smoke run's 50-iteration caps can leave uniform without a single high-quality start: every
+    ratio is undefined and nothing is plotted, yet the figure must still draw (log x axis, fixed limits)."""
+    from amorgs.figures.ablation import fig22_iteration_capped
+
+    capped = pd.DataFrame({"alpha": 0.15, "sampler": ["uniform", "amorgs"] * 2, "cap_iterations": [10, 10, 50, 50],
+                           "n": 2, "percent_ratio": np.nan, "throughput_ratio": np.nan})
+    fig = fig22_iteration_capped(capped)
+    fig.canvas.draw()
+    assert fig.axes[0].get_xlim()[0] == pytest.approx(10 / 1.3)

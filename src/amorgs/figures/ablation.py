@@ -154,9 +154,12 @@ def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
         axes[0, j].set_ylabel("% within cap ÷ uniform's")
         axes[1, j].set_ylabel("HQ per iteration ÷ uniform's")
         axes[1, j].set_xlabel("iteration cap (fixed before the solves)")
+        caps = t["cap_iterations"].to_numpy(dtype=float)
         for ax in axes[:, j]:
             ax.axhline(1.0, color="grey", ls="--", lw=0.8)
             ax.set_xscale("log")
+            # explicit limits: with every ratio undefined (no high-quality start) no point is drawn
+            ax.set_xlim(caps.min() / 1.3, caps.max() * 1.3)
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("Fig. 22 (iteration cap) — ratio of percentages and throughput ratio vs the cap (∞ not drawn)")
     fig.tight_layout()
