@@ -514,6 +514,15 @@ def cmd_library_export(args: argparse.Namespace) -> None:
     )
 
 
+def cmd_models_export(args: argparse.Namespace) -> None:
+    from amorgs.models.shipped import export_models
+
+    manifest = export_models(args.models_dir, args.dest, args.config, args.library_dir)
+    size = sum(f["bytes"] for f in manifest["files"])
+    print(f"{args.dest}: {len(manifest['files'])} checkpoints ({size / 1e6:.2f} MB), trained on a library of "
+          f"{manifest['library_rows']} solves; manifest {args.dest}/provenance.json")
+
+
 def cmd_library_grow(args: argparse.Namespace) -> None:
     from amorgs.data.library_grow import grow
 
@@ -626,7 +635,9 @@ _EXAMPLES = {
     "      --high-quality results/cr3bp/high_quality.parquet --beta 415 --summary summary.json \\\n"
     "      --table6-csv table6.csv --table6-md table6.md --capped capped.csv --coverage coverage.csv \\\n"
     "      --figures-dir results/figures",
-    "library-export": "amorgs library-export --solutions-dir results/cr3bp/solutions --library-dir data/library",
+    "library-export": "amorgs library-export --solutions-dir results/library-grow/results/cr3bp/solutions "
+    "--library-dir data/library",
+    "models-export": "amorgs models-export --models-dir results/cr3bp/models --dest data/models/cr3bp",
     "boundary-conditions": "amorgs boundary-conditions --check     # recompute and compare with the stored resource",
     "ui": "amorgs ui --port 5000     # then browse http://127.0.0.1:5000",
     "check-outputs": "amorgs check-outputs --config config/smoke.yaml   # exit 0: complete; 1: missing or broken;\n"
@@ -793,6 +804,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--library-dir", default="data/library", help="library root (data/library)")
     p.add_argument("--config", default="config/library.yaml", help="the config that generated them (provenance)")
     p.set_defaults(func=cmd_library_export)
+
+    p = sub.add_parser("models-export", help="ship a workflow run's CR3BP checkpoints in the repository (for design)")
+    p.add_argument("--models-dir", default="results/cr3bp/models", help="the train step's checkpoints")
+    p.add_argument("--dest", default="data/models/cr3bp", help="where the shipped checkpoints live")
+    p.add_argument("--config", default="config/default.yaml", help="the config of the run that trained them")
+    p.add_argument("--library-dir", default="data/library", help="the library they were trained on (its hash is recorded)")
+    p.set_defaults(func=cmd_models_export)
 
     p = sub.add_parser(
         "library-grow",

@@ -185,6 +185,11 @@ def make_sampler(request: DesignRequest, cfg, problem):
             if not path.is_file():
                 raise InputError(f"{path}: model checkpoint not found (--models-dir {request.models_dir}; "
                                  f"sampler {request.sampler} needs {', '.join(NEEDS_MODELS[request.sampler])})")
+        from amorgs.models.shipped import verify_models
+
+        shipped = verify_models(models_dir, tuple(CHECKPOINTS[m] for m in NEEDS_MODELS[request.sampler]))
+        if shipped is not None:
+            info["models_git_commit"] = shipped["git_commit"]
     hq = None
     if request.sampler in NEEDS_HIGH_QUALITY:
         hq = library_high_quality(request.library_dir, train, section.filter.min_final_mass_kg)

@@ -1,0 +1,86 @@
+"""Model checkpoints shipped in the repository (``data/models/cr3bp/``), so that ``amorgs design`` can use
+the learned samplers on a fresh clone without a workflow run.
+
+Layout::
+
+    data/models/cr3bp/{cvae_gmm,vanilla_cvae,lstm}.pt     the checkpoints of one workflow run's train step
+    data/models/cr3bp/provenance.json                     manifest: per file SHA-256 and bytes; the config
+                                                          (file, hash), git commit, export time, and the
+                                                          library manifest's SHA-256 + rows they were trained on
+
+:func:`verify_models` refuses (``InputError`` naming the file) a checkpoint that is missing, unlisted or whose
+SHA-256 differs from the manifest.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import json
+import shutil
+from pathlib import Path
+
+from amorgs.data.io import atomic_path, write_json
+from amorgs.data.library import MANIFEST as LIBRARY_MANIFEST
+from amorgs.data.library import _git_commit, read_manifest, sha256_file
+from amorgs.errors import InputError
+
+MANIFEST = "provenance.json"
+CHECKPOINT_FILES = ("cvae_gmm.pt", "vanilla_cvae.pt", "lstm.pt")
+
+
+def export_models(models_dir: str | Path, dest: str | Path, config_file: str | Path,
+                  library_dir: str | Path = "data/library", problem: str = "cr3bp") -> dict:
+    """Copy the checkpoints of ``models_dir`` (a workflow run's ``results/cr3bp/models``) to ``dest`` and write
+    the manifest; returns it."""
+    from amorgs.config import load_config
+
+    src, dst = Path(models_dir), Path(dest)
+    cfg = load_config(config_file)
+    files = []
+    for name in CHECKPOINT_FILES:
+        if not (src / name).is_file():
+            raise InputError(f"{src / name}: checkpoint not found (run the workflow's train step first)")
+        with atomic_path(dst / name) as tmp:
+            shutil.copyfile(src / name, tmp)
+        files.append({"file": name, "sha256": sha256_file(dst / name), "bytes": (dst / name).stat().st_size})
+    library = read_manifest(library_dir, problem)
+    library_path = Path(library_dir) / problem / LIBRARY_MANIFEST
+    manifest = {
+        "problem": problem,
+        "files": files,
+        "config_file": str(config_file),
+        "config_hash": cfg.hash,
+        "cr3bp_models": dataclasses.asdict(cfg.cr3bp_models),
+        "train_alphas": list(cfg.problems.cr3bp.alphas.train_values()),
+        "library_manifest_sha256": sha256_file(library_path) if library is not None else None,
+        "library_rows": library["totals"]["rows"] if library is not None else 0,
+        "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "git_commit": _git_commit(),
+    }
+    write_json(manifest, dst / MANIFEST)
+    return manifest
+
+
+def verify_models(models_dir: str | Path, needed: tuple[str, ...] = CHECKPOINT_FILES) -> dict | None:
+    """Check the ``needed`` checkpoints of a shipped models folder against its manifest; return the manifest,
+    or None if the folder has no manifest (a workflow's own ``results/cr3bp/models``, trusted as is)."""
+    root = Path(models_dir)
+    path = root / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        manifest = json.loads(path.read_text())
+    except ValueError as exc:
+        raise InputError(f"{path}: not a readable models manifest ({exc})") from None
+    listed = {e["file"]: e for e in manifest["files"]}
+    for name in needed:
+        if name not in listed:
+            raise InputError(f"{root / name}: not listed in {path}")
+        if not (root / name).is_file():
+            raise InputError(f"{root / name}: listed in {path} but missing")
+        digest = sha256_file(root / name)
+        if digest != listed[name]["sha256"]:
+            raise InputError(f"{root / name}: SHA-256 {digest[:12]}… differs from the manifest's "
+                             f"{listed[name]['sha256'][:12]}… (modified after export; restore it with git)")
+    return manifest
