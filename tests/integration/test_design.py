@@ -59,7 +59,7 @@ def test_design_writes_every_file(designed):
         np.testing.assert_allclose(norms, 1.0, atol=1e-12)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["found"] >= 2 and summary["returned"] == 2 and summary["stop_reason"] == "found"
-    assert summary["nearest_training_alpha"] == 0.5 and summary["sampler"] == "nearest_alpha"
+    assert summary["nearest_training_alpha"] == 0.4 and summary["sampler"] == "nearest_alpha"  # the library has α = 0.4
     assert summary["starts"] <= 12
     print(f"\ndesign α={ALPHA} n=2: starts {summary['starts']}, found {summary['found']}, CPU {summary['cpu_s']:.1f} s, "
           f"solver CPU {summary['solver_cpu_s']:.1f} s, wall {summary['wall_s']:.1f} s")
@@ -96,13 +96,19 @@ def test_oem_read_back_matches_propagate_and_solutions_verify(designed):
 
         traj = propagate(x, ALPHA, problem.initial_state, problem.terminal_state)
         first = np.r_[True, np.diff(traj.t) > 0]  # the OEM keeps the first sample of a repeated epoch
+        # an epoch that appears twice is the match point: forward and backward arcs meet there and differ by
+        # the match defect (≤ the verification tolerance), so it is checked against that bound only
+        repeated = np.abs(traj.t - traj.match_time) < 1e-9
         t_ref, s_ref = traj.t[first], traj.states[:6, first].T
         idx = np.searchsorted(t_oem, t_ref - 1e-9)
         assert np.all(np.abs(t_oem[idx] - t_ref) * frames.TU_S < 1e-6), "every propagate epoch is in the OEM (to 1 µs)"
-        pos_err_km = np.abs(rot[idx, :3] - s_ref[:, :3]).max() * frames.DU_KM
-        vel_err_km_s = np.abs(rot[idx, 3:] - s_ref[:, 3:]).max() * frames.VU_KM_S
+        err = np.abs(rot[idx] - s_ref)
+        smooth = ~repeated[first]
+        pos_err_km = err[smooth, :3].max() * frames.DU_KM
+        vel_err_km_s = err[smooth, 3:].max() * frames.VU_KM_S
         assert pos_err_km < 1e-3, pos_err_km
         assert vel_err_km_s < 1e-8, vel_err_km_s
+        assert err[~smooth].max(initial=0.0) <= verify_tol
         # the OEM also agrees with the CSV history at its own epochs (same frame, km)
         history = pd.read_csv(designed["out"] / "trajectories" / f"rank-{int(row['rank']):02d}.csv")
         assert len(states) <= len(history) and t_oem[-1] == pytest.approx(history["t_tu"].iloc[-1], abs=1e-11)
