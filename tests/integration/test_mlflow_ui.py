@@ -10,29 +10,21 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
-import socket
 import subprocess
 import sys
-import time
 import urllib.request
 from pathlib import Path
 
 import pytest
 
 from amorgs import tracking
+from mlflow_serving import free_port, serving
 
 pytestmark = pytest.mark.slow
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 ENV = {k: v for k, v in os.environ.items() if k not in ("PYTEST_CURRENT_TEST", tracking.TRACKING_URI_ENV)}
 EXPERIMENT = "amorgs-ui-test"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -67,30 +59,8 @@ def ui(tracked_store):
     port = free_port()
     log = tracked_store["root"] / "ui.log"
     cmd = tracking.ui_command(tracked_store["store"], port=port)
-    proc = subprocess.Popen(
-        cmd, cwd=tracked_store["root"], stdout=subprocess.DEVNULL, stderr=open(log, "w"), start_new_session=True, env=ENV
-    )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 180
-        while True:
-            assert proc.poll() is None, log.read_text()[-3000:]
-            try:
-                with urllib.request.urlopen(f"{url}/health", timeout=2) as resp:
-                    if resp.status == 200:
-                        break
-            except OSError:
-                pass
-            assert time.monotonic() < deadline, "the MLflow UI did not answer within 180 s"
-            time.sleep(0.5)
+    with serving(cmd, port, tracked_store["root"], log, ENV, "the MLflow UI") as url:
         yield url
-    finally:
-        os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
 
 
 def chromium(url: str, out: Path, expect: tuple[str, ...], attempts: int = 4) -> str:

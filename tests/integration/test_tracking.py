@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import textwrap
@@ -21,6 +20,7 @@ import pytest
 from mlflow.tracking import MlflowClient
 
 from amorgs import tracking
+from mlflow_serving import free_port, serving
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV = {k: v for k, v in os.environ.items() if k not in ("PYTEST_CURRENT_TEST", tracking.TRACKING_URI_ENV)}
@@ -170,45 +170,16 @@ def test_check_outputs_names_a_missing_store(tmp_path, monkeypatch):
 # ------------------------------------------------------------------------------- a real MLflow server
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture
 def mlflow_server(tmp_path):
     """A real ``mlflow server`` on 127.0.0.1 (random free port), stopped with its process group afterwards."""
     port = free_port()
-    url = f"http://127.0.0.1:{port}"
     workdir = tmp_path / "server"
     workdir.mkdir()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port), "--workers", "1",
-         "--backend-store-uri", f"sqlite:///{workdir / 'server.db'}", "--artifacts-destination", str(workdir / "artifacts")],
-        cwd=workdir, stdout=subprocess.DEVNULL, stderr=open(workdir / "server.log", "w"), start_new_session=True,
-        env={**ENV, "MLFLOW_DISABLE_TELEMETRY": "true"},
-    )
-    try:
-        deadline = time.monotonic() + 180
-        while True:
-            assert proc.poll() is None, (workdir / "server.log").read_text()[-3000:]
-            try:
-                with urllib.request.urlopen(f"{url}/health", timeout=2) as resp:
-                    if resp.status == 200:
-                        break
-            except OSError:
-                pass
-            assert time.monotonic() < deadline, "mlflow server did not answer within 180 s"
-            time.sleep(0.5)
+    cmd = [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port), "--workers", "1",
+           "--backend-store-uri", f"sqlite:///{workdir / 'server.db'}", "--artifacts-destination", str(workdir / "artifacts")]
+    with serving(cmd, port, workdir, workdir / "server.log", {**ENV, "MLFLOW_DISABLE_TELEMETRY": "true"}, "mlflow server") as url:
         yield url
-    finally:
-        os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
 
 
 def _tracked_job(store: Path, tmp_path: Path) -> None:
