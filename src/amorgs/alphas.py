@@ -1,0 +1,54 @@
+"""One identity for α, and one form of the metric keys that carry it.
+
+Two α are *the same* when their three-decimal labels are equal (:func:`alpha_label`, ``0.150``): that is
+how α appears in file names, Snakemake wildcards, table selections and MLflow keys, so a value read back from
+a Parquet table, a path or a config always selects the same rows.  Every comparison of α in the package goes
+through :func:`same_alpha` or :func:`rows_at`; no module compares α with ``==``, ``np.isclose`` or a
+tolerance of its own.
+
+Metric keys (MLflow and the metrics JSON files) are built by :func:`metric_key` only:
+``name`` or ``name/alpha_0.150`` or ``name/alpha_0.150/amorgs``: the α part is always ``alpha_`` + label.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+import pandas as pd
+
+
+def alpha_label(alpha: float | str) -> str:
+    """The stable string form of α in paths, wildcards and keys: three fixed decimals (``0.150``)."""
+    return f"{float(alpha):.3f}"
+
+
+def same_alpha(a: float | str, b: float | str) -> bool:
+    """Whether ``a`` and ``b`` are the same α (equal labels)."""
+    return alpha_label(a) == alpha_label(b)
+
+
+def alpha_mask(values: Iterable[float] | pd.Series | np.ndarray, alpha: float | str) -> np.ndarray:
+    """Boolean mask of the entries of ``values`` that are the same α as ``alpha``."""
+    label = alpha_label(alpha)
+    return np.array([alpha_label(v) == label for v in np.asarray(values, dtype=float)], dtype=bool)
+
+
+def rows_at(df: pd.DataFrame, alpha: float | str, column: str = "alpha") -> pd.DataFrame:
+    """The rows of ``df`` at ``alpha`` (by label), index kept."""
+    return df[alpha_mask(df[column], alpha)]
+
+
+def rows_at_any(df: pd.DataFrame, alphas: Iterable[float | str], column: str = "alpha") -> pd.DataFrame:
+    """The rows of ``df`` at any of ``alphas`` (by label), index kept."""
+    labels = {alpha_label(a) for a in alphas}
+    return df[df[column].map(alpha_label).isin(labels)]
+
+
+def metric_key(name: str, alpha: float | str | None = None, *qualifiers: object) -> str:
+    """The metric key ``name[/alpha_<label>][/<qualifier>…]`` (MLflow allows ``/``, not ``=``)."""
+    parts = [name]
+    if alpha is not None:
+        parts.append(f"alpha_{alpha_label(alpha)}")
+    parts += [str(q) for q in qualifiers]
+    return "/".join(parts)
