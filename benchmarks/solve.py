@@ -24,6 +24,7 @@ start is charged cap × its own measured cost per iteration.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import platform
 import re
@@ -36,26 +37,24 @@ import numpy as np
 import pandas as pd
 
 from amorgs.solvers.multistart import run_multistart
+from amorgs.solvers.options import IpoptOptions, TranscriptionOptions
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "performance.md"
 #: The solver defaults before issue 9 §1 (explicit, so the comparison survives later default changes).
-PREVIOUS = {
-    "compile_flags": "-O2",
-    "stall_window": 0,
-    "transcription": {"steps_per_segment": 24, "steps_per_coast": 320, "step_scaling_alpha": 0.3,
-                      "scale_down": False},
-}
+PREVIOUS = IpoptOptions(
+    compile_flags="-O2",
+    stall_window=0,
+    transcription=TranscriptionOptions(steps_per_segment=24, steps_per_coast=320, step_scaling_alpha=0.3,
+                                       scale_down=False),
+)
 
 
-def _with(base: dict, **changes) -> dict:
-    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in base.items()}
-    for key, value in changes.items():
-        if key == "transcription":
-            out["transcription"] = {**out.get("transcription", {}), **value}
-        else:
-            out[key] = value
-    return out
+def _with(base: IpoptOptions, **changes) -> IpoptOptions:
+    """``base`` with ``changes``; ``transcription=`` takes a dict of changes to the nested options."""
+    if "transcription" in changes:
+        changes["transcription"] = dataclasses.replace(base.transcription, **changes["transcription"])
+    return dataclasses.replace(base, **changes)
 
 
 #: ``--variants``: the previous default, each issue-9 change alone on top of it, and the new default ({}).
@@ -64,7 +63,7 @@ VARIANTS = {
     "+ compile flags -O3 -march=native -ffp-contract=off": _with(PREVIOUS, compile_flags="-O3 -march=native -ffp-contract=off"),
     "+ stall abort": _with(PREVIOUS, stall_window=300, stall_factor=0.5),
     "+ steps scaled down above α = 0.3": _with(PREVIOUS, transcription={"scale_down": True}),
-    "new default (compile flags only; abort off, steps unchanged)": {},
+    "new default (compile flags only; abort off, steps unchanged)": IpoptOptions(),
 }
 #: ``--compare``: the final old-vs-new table.
 COMPARE = {k: v for k, v in VARIANTS.items() if k.startswith(("previous", "new"))}
@@ -200,14 +199,14 @@ def main() -> None:
         write_section("scaling", text)
         return
 
-    variants = VARIANTS if args.variants else COMPARE if args.compare else {"default": {}}
+    variants = VARIANTS if args.variants else COMPARE if args.compare else {"default": IpoptOptions()}
     cells = [(label, opts, alpha) for label, opts in variants.items() for alpha in args.alphas]
 
     def run_cell(cell):
         label, opts, alpha = cell
         if args.max_wall_s is not None:
-            opts = {**opts, "max_wall_s": args.max_wall_s}
-        df = run_multistart("cr3bp", alpha, args.seed, args.starts, workers=1, solver_options=opts, progress=False)
+            opts = dataclasses.replace(opts, max_wall_s=args.max_wall_s)
+        df = run_multistart("cr3bp", alpha, args.seed, args.starts, workers=1, options=opts, progress=False)
         df["variant"] = label
         print(json.dumps({"variant": label, **summarize(df)}, default=str), flush=True)
         return df

@@ -45,6 +45,16 @@ def rows_at_any(df: pd.DataFrame, alphas: Iterable[float | str], column: str = "
     return df[df[column].map(alpha_label).isin(labels)]
 
 
+def alpha_value(alpha: float | str) -> float:
+    """The α that ``alpha`` is, as a number: the float of its label (``0.1500001`` → ``0.15``)."""
+    return float(alpha_label(alpha))
+
+
+def distinct_alphas(values: Iterable[float | str] | pd.Series | np.ndarray) -> list[float]:
+    """The distinct α among ``values``, one per label, as :func:`alpha_value`, ascending."""
+    return sorted({alpha_value(v) for v in np.asarray(values, dtype=float).ravel()})
+
+
 def metric_key(name: str, alpha: float | str | None = None, *qualifiers: object) -> str:
     """The metric key ``name[/alpha_<label>][/<qualifier>…]`` (MLflow allows ``/``, not ``=``)."""
     parts = [name]

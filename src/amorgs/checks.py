@@ -4,7 +4,8 @@ Every output must exist and be non-empty; solution tables must pass the table sc
 cells: the key columns, ``sampler``, ``converged``, ``wall_s``); the ablation's statistics tables must have
 ``alpha`` and ``sampler`` columns and rows, and its summary the expected-running-time metrics;
 figures must be PNG files; JSON must parse; and, with MLflow enabled, every job of the config must have a
-FINISHED run in the store (from this or an earlier invocation), every figure must be logged as an
+FINISHED run in the store (from this or an earlier invocation; the jobs and their outputs are those of
+:func:`amorgs.steps.expected_jobs` and :func:`amorgs.steps.targets`), every figure must be logged as an
 artifact, and the latest workflow run must have FINISHED.
 """
 
@@ -15,57 +16,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from amorgs import layout
-from amorgs.config import Config, alpha_label
+from amorgs import layout, steps
+from amorgs.config import Config
 from amorgs.data.tables import validate_solutions
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: Figures drawn by a rule of their own (the others come out of analyze_cr3bp, predict_cr3bp, ablation_report).
-_FIGURE_RULES = ("fig02_foxholes", "fig16_dejong_predictions")
-
-
-def expected_jobs(cfg: Config) -> list[tuple[str, dict[str, str]]]:
-    """(rule, wildcards) of every job a complete run of ``cfg`` executes."""
-    jobs: list[tuple[str, dict[str, str]]] = []
-    for name, problem in cfg.problems.enabled().items():
-        for label in problem.alpha_values():
-            jobs += [("generate", {"problem": name, "alpha": label, "shard": str(k)}) for k in range(problem.generate.shards)]
-            jobs.append(("merge", {"problem": name, "alpha": label}))
-        jobs.append(("filter", {"problem": name}))
-    if cfg.dejong_cvae.enabled:
-        jobs += [(rule, {"problem": "dejong", "model": "cvae_gmm"}) for rule in ("train_dejong_cvae", "predict_dejong_cvae")]
-    if cfg.cr3bp_analysis.enabled:
-        jobs.append(("analyze_cr3bp", {"problem": "cr3bp"}))
-    if cfg.cr3bp_models.enabled:
-        jobs += [("train_cr3bp", {"problem": "cr3bp", "model": m}) for m in layout.CR3BP_MODELS]
-        jobs += [
-            ("train_cr3bp_fraction", {"problem": "cr3bp", "model": "cvae_gmm", "fraction": layout.fraction_label(f)})
-            for f in cfg.cr3bp_models.data_fractions
-        ]
-        jobs.append(("predict_cr3bp", {"problem": "cr3bp"}))
-    if cfg.ablation.enabled:
-        jobs += [
-            ("ablation_cell", {"alpha": alpha_label(a), "sampler": s})
-            for a in cfg.problems.cr3bp.alphas.test
-            for s in cfg.ablation.samplers
-        ]
-        from amorgs.ablation.arms import NEEDS_MODELS
-
-        needed = sorted({m for s in cfg.ablation.samplers for m in NEEDS_MODELS[s]})
-        jobs += [
-            ("train_cr3bp_replicate", {"problem": "cr3bp", "model": name, "mseed": str(m)})
-            for m in cfg.cr3bp_models.extra_seeds
-            for name in needed
-        ]
-        jobs += [
-            ("ablation_cell_replicate", {"alpha": alpha_label(a), "sampler": s, "mseed": str(m)})
-            for m in cfg.cr3bp_models.extra_seeds
-            for a in cfg.problems.cr3bp.alphas.test
-            for s in cfg.ablation.samplers
-        ]
-        jobs.append(("ablation_report", {}))
-    jobs += [(name, {}) for name in layout.figure_names(cfg) if name in _FIGURE_RULES]
-    return jobs
 
 
 def _check_file(path: str) -> str | None:
@@ -79,8 +34,8 @@ def _check_file(path: str) -> str | None:
             return f"{path}: not a PNG image"
         if p.suffix == ".json":
             data = json.loads(p.read_text())
-            if path == layout.ABLATION_SUMMARY and not any(k.startswith("aRT_iterations_") for k in data):
-                return f"{path}: no expected-running-time metrics (aRT_iterations_*)"
+            if path == layout.ABLATION_SUMMARY and not any(k.startswith("aRT_iterations/") for k in data):
+                return f"{path}: no expected-running-time metrics (aRT_iterations/*)"
         if p.suffix == ".csv" and Path(path).name.startswith("ablation_") and "iteration_capped" not in path:
             df = pd.read_csv(p)
             missing = [c for c in ("alpha", "sampler") if c not in df.columns]
@@ -113,9 +68,7 @@ UNTRACKED = (
 
 def check_outputs(cfg: Config, tracked: bool = True) -> list[str]:
     """Every problem found with the outputs of ``cfg`` (an empty list when all is well)."""
-    files = list(layout.targets(cfg))
-    for name in cfg.problems.enabled():
-        files += layout.alpha_tables(cfg, name)
+    files = steps.targets(cfg)
     problems = [msg for msg in map(_check_file, files) if msg]
     for name in cfg.problems.enabled():
         path = layout.HIGH_QUALITY.format(problem=name)
@@ -140,11 +93,11 @@ def _check_tracking(cfg: Config) -> list[str]:
     if store["parent_status"] != "FINISHED":
         problems.append(f"MLflow: the latest workflow run is {store['parent_status']}, not FINISHED")
     finished = {(j["rule"], json.dumps(j["wildcards"], sort_keys=True)) for j in store["jobs"] if j["status"] == "FINISHED"}
-    for rule, wildcards in expected_jobs(cfg):
+    for rule, wildcards in steps.expected_jobs(cfg):
         if (rule, json.dumps(wildcards, sort_keys=True)) not in finished:
             problems.append(f"MLflow: no FINISHED run of {rule} {wildcards}")
     logged = {Path(a).name for j in store["jobs"] for a in j["artifacts"]}
-    for name in layout.figure_names(cfg):
-        if f"{name}.png" not in logged:
-            problems.append(f"MLflow: figure {name}.png is not logged")
+    for figure in (Path(p).name for p in steps.targets(cfg) if p.endswith(".png")):
+        if figure not in logged:
+            problems.append(f"MLflow: figure {figure} is not logged")
     return problems

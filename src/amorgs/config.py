@@ -1,131 +1,137 @@
-"""The workflow configuration as typed, frozen dataclasses mirroring ``workflow/schemas/config.schema.yaml``.
+"""The workflow configuration: one typed model (pydantic) that is the schema.
 
-A config file is checked in two steps: the JSON Schema (every key required, no unknown key, types and
-ranges), then the cross-field rules the schema cannot express (α labels unique per problem, the CVAE needs
-the De Jong data and test α).  Every failure is a :class:`ConfigError` whose message names the file and the
-dotted key, e.g. ``config/smoke.yaml: problems.dejong.generate: Additional properties are not allowed
-('startz' was unexpected)``.
+A config file is the complete experiment: every key is required (except inside the solver sections, whose
+defaults live in :mod:`amorgs.solvers.options`, and ``cr3bp_analysis.params``, whose defaults live in
+:class:`amorgs.analysis.structure_params.StructureParams`), no other key is allowed, and no other file is
+merged under it.  The JSON Schema ``workflow/schemas/config.schema.json`` is *generated* from these models
+(``amorgs config-schema --write``; a test keeps it current), so types, ranges, enums and descriptions are
+written once, here.  Enums come from the registries: samplers from :mod:`amorgs.ablation.arms`, problems
+from :mod:`amorgs.problems`, presets from :mod:`amorgs.models.names`.
 
-α values appear in file names and Snakemake wildcards as fixed three-decimal labels (:func:`alpha_label`,
-``0.150``); the exact float behind each label is kept here and passed to the solver.
+Checking happens at load, before any job: the model (types, ranges, enums, unknown keys), then the
+cross-field rules (:meth:`Config._cross_field_rules`: α inside each problem's range and distinct at three
+decimals, stages enabled together, iteration caps ≤ ``max_iter``).  Every failure is one
+:class:`ConfigError` whose lines name the file and the dotted key, e.g.
+``config/smoke.yaml: problems.dejong.generate.startz: Extra inputs are not permitted``.
+
+α identity: :func:`amorgs.alphas.alpha_label` (three decimals, ``0.150``) in paths, wildcards and keys; the
+exact float behind each label is kept here and passed to the solver.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
-import types
-import typing
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Literal
 
-import jsonschema
 import numpy as np
 import yaml
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
-#: The schema, relative to the repository root (the working directory of the workflow and the CLI).
-SCHEMA_PATH = Path("workflow/schemas/config.schema.yaml")
+from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_NAMES
+from amorgs.alphas import alpha_label
+from amorgs.analysis.structure_params import StructureParams
+from amorgs.errors import ConfigError
+from amorgs.models.names import CR3BP_PRESETS, DEJONG_PRESETS
+from amorgs.problems import ALPHA_RANGES
+from amorgs.solvers.options import BfgsOptions, IpoptOptions
+
+#: The generated JSON Schema, relative to the repository root (the working directory of workflow and CLI).
+SCHEMA_PATH = Path("workflow/schemas/config.schema.json")
+#: The config a plain ``snakemake`` (no ``--configfile``) runs.
+DEFAULT_CONFIG = Path("config/default.yaml")
+
+PositiveInt = Annotated[int, Field(ge=1)]
+Seed = Annotated[int, Field(ge=0, description="random seed (≥ 0)")]
+PositiveFloat = Annotated[float, Field(gt=0)]
+#: A switch: true or false only (a quoted "yes" is an error, not True).
+Flag = StrictBool
 
 
-class ConfigError(ValueError):
-    """An invalid configuration; the message names the file and the key."""
+class Section(BaseModel):
+    """A config section: frozen, every field required unless it has a default, no unknown keys."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-def alpha_label(alpha: float) -> str:
-    """The stable string form of α used in paths and wildcards: three fixed decimals (``0.150``)."""
-    return f"{alpha:.3f}"
+def _unique(values: tuple) -> tuple:
+    if len(set(values)) != len(values):
+        raise ValueError(f"values must be unique, got {list(values)}")
+    return values
 
 
-@dataclass(frozen=True)
-class AlphaGrid:
-    """``num`` evenly spaced α from ``start`` to ``stop`` inclusive (numpy.linspace)."""
+# --------------------------------------------------------------------------------------------- sections
+
+
+class AlphaGrid(Section):
+    """``num`` evenly spaced α from ``start`` to ``stop``, both included (numpy.linspace)."""
 
     start: float
     stop: float
-    num: int
+    num: PositiveInt
 
     def values(self) -> tuple[float, ...]:
         return tuple(float(a) for a in np.linspace(self.start, self.stop, self.num))
 
 
-@dataclass(frozen=True)
-class Alphas:
-    """α values of a problem: ``train`` (a list or a grid) and held-out ``test``; both are generated."""
+class Alphas(Section):
+    """α values solved by the generate stage: ``train`` (a list or a grid) and held-out ``test``."""
 
-    train: tuple[float, ...] | AlphaGrid
-    test: tuple[float, ...]
+    train: Annotated[tuple[float, ...], Field(min_length=1)] | AlphaGrid = Field(
+        description="training α: a list, or {start, stop, num} (numpy.linspace)")
+    test: tuple[float, ...] = Field(description="held-out α: generated for the ground truth, never trained on")
 
     def train_values(self) -> tuple[float, ...]:
         return self.train.values() if isinstance(self.train, AlphaGrid) else self.train
 
 
-@dataclass(frozen=True)
-class Job:
+class Job(Section):
     """Resources of one job: ``threads`` (cores), ``mem_mb`` (MB), ``runtime_min`` (wall minutes)."""
 
-    threads: int
-    mem_mb: int
-    runtime_min: int
+    threads: PositiveInt
+    mem_mb: PositiveInt
+    runtime_min: PositiveInt
 
 
-@dataclass(frozen=True)
-class Generate:
-    """Per α: ``shards`` jobs × ``starts_per_shard`` uniform starts, ``workers`` solver processes per job."""
+class Generate(Section):
+    """Per α: ``shards`` jobs × ``starts_per_shard`` uniform starts, ``workers`` solver processes per job
+    (= the job's threads), with the job's ``mem_mb`` (MB) and ``runtime_min`` (minutes)."""
 
-    shards: int
-    starts_per_shard: int
-    workers: int
-    mem_mb: int
-    runtime_min: int
-
-
-@dataclass(frozen=True)
-class DejongSolver:
-    """scipy BFGS: ``gtol`` (gradient ∞-norm tolerance, dimensionless), ``maxiter`` (iteration cap)."""
-
-    gtol: float
-    maxiter: int
+    shards: PositiveInt
+    starts_per_shard: PositiveInt
+    workers: PositiveInt
+    mem_mb: PositiveInt
+    runtime_min: PositiveInt
 
 
-@dataclass(frozen=True)
-class DejongFilter:
-    """Keep converged solves with J ≤ ``max_objective`` (``None``: every converged solve)."""
+class Library(Section):
+    """The versioned solution library: with ``enabled``, the merge of every α also takes the committed files
+    under ``path``/{problem}/alpha={label}/ (:mod:`amorgs.data.library`) — all of them, or with
+    ``max_rows_per_alpha`` a fixed slice of the first rows in (shard, start) order."""
+
+    enabled: Flag
+    path: Annotated[str, Field(min_length=1, description="library root, relative to the working directory")]
+    max_rows_per_alpha: PositiveInt | None = Field(
+        description="null: every library row of each α; a number: only the first rows (a fixed slice)")
+
+
+class DejongFilter(Section):
+    """Keep converged solves with J ≤ ``max_objective`` (``null``: every converged solve)."""
 
     max_objective: float | None
 
 
-@dataclass(frozen=True)
-class Cr3bpSolver:
-    """IPOPT caps: ``max_iter`` (the primary limit) and ``max_wall_s`` (seconds, a safety net)."""
-
-    max_iter: int
-    max_wall_s: float
-
-
-@dataclass(frozen=True)
-class Cr3bpFilter:
+class Cr3bpFilter(Section):
     """β: keep converged solves with final mass m_f ≥ ``min_final_mass_kg`` (kg)."""
 
     min_final_mass_kg: float
 
 
-@dataclass(frozen=True)
-class Library:
-    """The versioned solution library: with ``enabled``, the merge of every α also takes the committed files
-    under ``path``/{problem}/alpha={label}/ (see :mod:`amorgs.data.library`) — all of them, or with
-    ``max_rows_per_alpha`` a fixed slice of the first rows in (shard, start) order."""
-
-    enabled: bool
-    path: str
-    max_rows_per_alpha: int | None
-
-
-@dataclass(frozen=True)
-class ProblemConfig:
+class ProblemConfig(Section):
     """What the generate → merge → filter stages do for one problem."""
 
-    enabled: bool
+    enabled: Flag
     alphas: Alphas
     generate: Generate
     library: Library
@@ -134,54 +140,41 @@ class ProblemConfig:
         """Label → α for every generated α (train, then test), in config order."""
         return {alpha_label(a): a for a in (*self.alphas.train_values(), *self.alphas.test)}
 
-    def solver_options(self) -> dict:
-        """The solver section as the plain dict the multistart takes."""
-        return dataclasses.asdict(self.solver)  # type: ignore[attr-defined]
-
     def filter_thresholds(self) -> dict:
         """The filter section as keyword arguments of :func:`amorgs.data.filter.high_quality`."""
-        return dataclasses.asdict(self.filter)  # type: ignore[attr-defined]
+        return self.filter.model_dump()  # type: ignore[attr-defined]
 
 
-@dataclass(frozen=True)
 class DejongConfig(ProblemConfig):
-    solver: DejongSolver
+    solver: BfgsOptions = Field(description="scipy BFGS options (amorgs.solvers.options.BfgsOptions)")
     filter: DejongFilter
 
 
-@dataclass(frozen=True)
 class Cr3bpConfig(ProblemConfig):
-    solver: Cr3bpSolver
+    solver: IpoptOptions = Field(description="IPOPT options (amorgs.solvers.options.IpoptOptions)")
     filter: Cr3bpFilter
 
 
-@dataclass(frozen=True)
-class Problems:
+class Problems(Section):
     dejong: DejongConfig
     cr3bp: Cr3bpConfig
 
     def enabled(self) -> dict[str, ProblemConfig]:
         """Name → section of every enabled problem."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if getattr(self, f.name).enabled}
+        return {name: getattr(self, name) for name in type(self).model_fields if getattr(self, name).enabled}
 
 
-@dataclass(frozen=True)
-class Mlflow:
-    """Mirror runs to MLflow in experiment ``experiment``.
+class Mlflow(Section):
+    """Mirror runs to MLflow in experiment ``experiment``; ``tracking_uri`` null means the SQLite store under
+    ``results/mlflow``; the ``MLFLOW_TRACKING_URI`` environment variable overrides both."""
 
-    ``tracking_uri`` None means the SQLite store under ``results/mlflow``; otherwise any MLflow tracking URI
-    (``http://host:5000``, ``sqlite:////abs/path.db``).  The ``MLFLOW_TRACKING_URI`` environment variable, when
-    set, overrides both (see :func:`amorgs.tracking.resolve_tracking_uri`).
-    """
-
-    enabled: bool
-    experiment: str
-    tracking_uri: str | None
+    enabled: Flag
+    experiment: Annotated[str, Field(min_length=1)]
+    tracking_uri: Annotated[str, Field(min_length=1)] | None
 
 
-@dataclass(frozen=True)
-class Resources:
-    """Job resources of the rules other than generate."""
+class Resources(Section):
+    """Job resources of the rules other than generate and the ablation cells."""
 
     merge: Job
     filter: Job
@@ -191,55 +184,46 @@ class Resources:
     analyze: Job
 
 
-@dataclass(frozen=True)
-class DejongCVAE:
-    """The GMM-prior CVAE on the De Jong minima (paper Sec. V.A, Table 3).
+class DejongCVAE(Section):
+    """The GMM-prior CVAE on the De Jong minima (paper Sec. V.A, Table 3): ``preset`` widths; Adam with
+    ``learning_rate`` for ``epochs`` epochs of ``batch_size`` rows; ``seed`` fixes weights, shuffling and
+    sampling; ``n_samples`` samples per test α scored against the true minima within ``radius`` (units of x)."""
 
-    ``preset`` names a :class:`amorgs.models.cvae.CVAEConfig` constructor; Adam with ``learning_rate`` for
-    ``epochs`` epochs of ``batch_size`` rows; ``seed`` fixes weights, shuffling and sampling;
-    ``n_samples`` samples are drawn per test α and scored against the true minima within ``radius``
-    (units of x).
-    """
-
-    enabled: bool
-    preset: str
-    learning_rate: float
-    epochs: int
-    batch_size: int
-    seed: int
-    n_samples: int
-    radius: float
+    enabled: Flag
+    preset: Literal[DEJONG_PRESETS]  # type: ignore[valid-type]
+    learning_rate: PositiveFloat
+    epochs: PositiveInt
+    batch_size: Annotated[int, Field(ge=2)]
+    seed: Seed
+    n_samples: PositiveInt
+    radius: PositiveFloat
 
 
-@dataclass(frozen=True)
-class Cr3bpAnalysis:
-    """The structure analysis of the CR3BP solutions (paper Sec. III.B, Figs. 3–13); ``params`` are the
-    fields of :class:`amorgs.analysis.structure_report.StructureParams` (empty: its defaults)."""
+class Cr3bpAnalysis(Section):
+    """The structure analysis of the CR3BP solutions (paper Sec. III.B, Figs. 3–13)."""
 
-    enabled: bool
-    params: dict
+    enabled: Flag
+    params: StructureParams = Field(description="StructureParams fields ({}: its defaults)")
 
 
-@dataclass(frozen=True)
-class Cr3bpModels:
-    """The three CR3BP generative models (paper Sec. IV, Tables 4–5), trained on the training α only.
+class Cr3bpModels(Section):
+    """The three CR3BP generative models (paper Sec. IV, Tables 4–5), trained on the training α only:
+    ``preset`` widths; Adam with ``learning_rate`` for ``epochs`` epochs of ``batch_size`` rows; ``seed``
+    fixes weights, shuffling, subsampling and sampling; ``extra_seeds``: further training seeds whose models
+    serve the ablation's replicates; ``data_fractions``: extra GMM-CVAEs on these fractions (Fig. 18);
+    ``n_samples``: samples per test α (Figs. 17–20)."""
 
-    ``preset`` (``paper`` or ``small``) picks the layer widths; Adam with ``learning_rate`` for ``epochs``
-    epochs of ``batch_size`` rows; ``seed`` fixes weights, shuffling, subsampling and sampling;
-    ``data_fractions``: extra GMM-CVAEs trained on these fractions of the data (Fig. 18); ``n_samples``:
-    samples drawn per test α for the prediction study (Figs. 17–20); ``extra_seeds``: further training seeds
-    whose models serve the ablation's replicates (results/cr3bp/models/seed={s}/).
-    """
+    enabled: Flag
+    preset: Literal[CR3BP_PRESETS]  # type: ignore[valid-type]
+    epochs: PositiveInt
+    batch_size: Annotated[int, Field(ge=2)]
+    learning_rate: PositiveFloat
+    seed: Seed
+    extra_seeds: tuple[Seed, ...]
+    data_fractions: tuple[Annotated[float, Field(gt=0, lt=1)], ...]
+    n_samples: PositiveInt
 
-    enabled: bool
-    preset: str
-    epochs: int
-    batch_size: int
-    learning_rate: float
-    seed: int
-    extra_seeds: tuple[int, ...]
-    data_fractions: tuple[float, ...]
-    n_samples: int
+    _unique_seeds = field_validator("extra_seeds", "data_fractions")(_unique)
 
     @property
     def seeds(self) -> tuple[int, ...]:
@@ -247,36 +231,33 @@ class Cr3bpModels:
         return (self.seed, *self.extra_seeds)
 
 
-@dataclass(frozen=True)
-class Ablation:
-    """The warm-start ablation at the CR3BP test α (paper Sec. V.B.7, Table 6): per (test α, sampler) one job
-    solving ``n_starts`` guesses with ``workers`` processes, the CR3BP solver options and a seed derived from
-    ``seed``; ``mem_mb`` and ``runtime_min`` are that job's resources.  Every arm runs once per model seed
-    (``cr3bp_models.seeds``), so each (α, arm) has ``n_starts × len(seeds)`` starts.
+class Ablation(Section):
+    """The warm-start ablation at the CR3BP test α (paper Sec. V.B.7, Table 6; issue 11): per (test α,
+    sampler, model seed) one job solving ``n_starts`` guesses with ``workers`` processes and the CR3BP solver
+    options; ``perturbation_scale`` is σ of nearest_alpha_perturbed (box-normalised), ``gmm_components`` the
+    mixture size of gmm_lstm per training α, ``iteration_caps`` the Fig. 22 caps fixed before the solves,
+    ``beta_sweep_kg`` extra β (kg) of the rate sweep, ``n_boot`` bootstrap resamples."""
 
-    Issue 11: ``perturbation_scale`` (σ of nearest_alpha_perturbed, box-normalised), ``gmm_components``
-    (gmm_lstm), ``iteration_caps`` (the Fig. 22 study, fixed before the solves), ``beta_sweep_kg`` (extra β
-    of the rate sweep), ``n_boot`` (bootstrap resamples of the speed-up intervals)."""
-
-    enabled: bool
-    samplers: tuple[str, ...]
-    n_starts: int
-    seed: int
-    workers: int
-    mem_mb: int
-    runtime_min: int
-    perturbation_scale: float
-    gmm_components: int
-    iteration_caps: tuple[int, ...]
+    enabled: Flag
+    samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)]  # type: ignore[valid-type]
+    n_starts: PositiveInt
+    seed: Seed
+    workers: PositiveInt
+    mem_mb: PositiveInt
+    runtime_min: PositiveInt
+    perturbation_scale: Annotated[float, Field(ge=0)]
+    gmm_components: PositiveInt
+    iteration_caps: tuple[PositiveInt, ...]
     beta_sweep_kg: tuple[float, ...]
-    n_boot: int
+    n_boot: PositiveInt
+
+    _unique_lists = field_validator("samplers", "iteration_caps", "beta_sweep_kg")(_unique)
 
 
-@dataclass(frozen=True)
-class Config:
+class Config(Section):
     """The whole workflow configuration; ``seed`` is the base of every derived seed."""
 
-    seed: int
+    seed: Seed
     mlflow: Mlflow
     resources: Resources
     problems: Problems
@@ -288,8 +269,43 @@ class Config:
     @property
     def hash(self) -> str:
         """12 hex digits of the SHA-256 of the canonical JSON of the whole config."""
-        text = json.dumps(dataclasses.asdict(self), sort_keys=True)
+        text = json.dumps(self.model_dump(mode="json"), sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+    @model_validator(mode="after")
+    def _cross_field_rules(self) -> Config:
+        """The rules a field alone cannot state (each error names its dotted key)."""
+        for name in type(self.problems).model_fields:
+            problem = getattr(self.problems, name)
+            lo, hi = ALPHA_RANGES[name]
+            seen: dict[str, float] = {}
+            for a in (*problem.alphas.train_values(), *problem.alphas.test):
+                if not lo - 1e-12 <= a <= hi + 1e-12:
+                    raise ValueError(f"problems.{name}.alphas: α = {a!r} lies outside the problem's range [{lo:g}, {hi:g}]")
+                label = alpha_label(a)
+                if label in seen:
+                    raise ValueError(f"problems.{name}.alphas: α values {seen[label]!r} and {a!r} share the label "
+                                     f"{label} (train and test must be distinct at three decimals)")
+                seen[label] = a
+        dejong, cr3bp = self.problems.dejong, self.problems.cr3bp
+        if self.dejong_cvae.enabled and not dejong.enabled:
+            raise ValueError("dejong_cvae.enabled needs problems.dejong.enabled: true")
+        if self.dejong_cvae.enabled and not dejong.alphas.test:
+            raise ValueError("dejong_cvae.enabled needs test α in problems.dejong.alphas.test")
+        for key in ("cr3bp_analysis", "cr3bp_models", "ablation"):
+            if getattr(self, key).enabled and not cr3bp.enabled:
+                raise ValueError(f"{key}.enabled needs problems.cr3bp.enabled: true")
+        for key in ("cr3bp_models", "ablation"):
+            if getattr(self, key).enabled and not cr3bp.alphas.test:
+                raise ValueError(f"{key}.enabled needs test α in problems.cr3bp.alphas.test")
+        learned = [s for s in self.ablation.samplers if NEEDS_MODELS[s]]
+        if self.ablation.enabled and learned and not self.cr3bp_models.enabled:
+            raise ValueError(f"ablation.samplers {learned} need cr3bp_models.enabled: true")
+        too_big = [c for c in self.ablation.iteration_caps if c > cr3bp.solver.max_iter]
+        if self.ablation.enabled and too_big:
+            raise ValueError(f"ablation.iteration_caps {too_big} exceed problems.cr3bp.solver.max_iter = "
+                             f"{cr3bp.solver.max_iter}: a cap above the solver's own is not a real cap")
+        return self
 
 
 # --------------------------------------------------------------------------------------------- loading
@@ -309,101 +325,57 @@ def read_yaml(path: str | Path) -> dict:
     return data
 
 
-def validate_mapping(mapping: dict, schema_path: str | Path = SCHEMA_PATH, source: str = "config") -> None:
-    """Check ``mapping`` against the JSON Schema; one ``ConfigError`` lists every violation by key."""
-    schema = yaml.safe_load(Path(schema_path).read_text())
-    validator = jsonschema.Draft202012Validator(schema)
-    errors = sorted(validator.iter_errors(mapping), key=lambda e: [str(p) for p in e.absolute_path])
-    if errors:
-        lines = [f"{source}: {'.'.join(str(p) for p in e.absolute_path) or '(top level)'}: {e.message}" for e in errors]
-        raise ConfigError("invalid configuration\n  " + "\n  ".join(lines))
+def _error_lines(exc: ValidationError, source: str) -> list[str]:
+    """One line per pydantic error: ``source: dotted.key: message (got value)``."""
+    lines = []
+    for err in exc.errors():
+        # keys are lower-case; union branches appear in the location as type names (AlphaGrid, tuple[...])
+        loc = ".".join(str(p) for p in err["loc"] if not (isinstance(p, str) and (p[:1].isupper() or "[" in p)))
+        message = err["msg"].removeprefix("Value error, ")
+        if err["type"] in ("extra_forbidden", "unexpected_keyword_argument"):
+            message = "unknown key"
+        elif err["type"] == "missing":
+            message = "required key is missing"
+        elif isinstance(err.get("input"), (int, float, str)) and err["type"] != "value_error":
+            message += f" (got {err['input']!r})"
+        if not loc and ": " in message:
+            lines.append(f"{source}: {message}")  # a cross-field rule names its own key
+        else:
+            lines.append(f"{source}: {loc or '(top level)'}: {message}")
+    return list(dict.fromkeys(lines))
 
 
 def from_mapping(mapping: dict, source: str = "config") -> Config:
-    """Build the typed :class:`Config` from a schema-valid mapping and apply the cross-field rules."""
-    cfg = _build(Config, mapping)
-    _check(cfg, source)
-    return cfg
+    """Validate ``mapping`` and build the typed :class:`Config`; one ``ConfigError`` lists every problem."""
+    try:
+        return Config.model_validate(mapping)
+    except ValidationError as exc:
+        lines = _error_lines(exc, source)
+        raise ConfigError(lines[0] if len(lines) == 1 else "invalid configuration\n  " + "\n  ".join(lines)) from None
 
 
-def load_config(path: str | Path, schema_path: str | Path = SCHEMA_PATH) -> Config:
+def load_config(path: str | Path) -> Config:
     """Read, validate and build the config in one file."""
-    mapping = read_yaml(path)
-    validate_mapping(mapping, schema_path, str(path))
-    return from_mapping(mapping, str(path))
+    return from_mapping(read_yaml(path), str(path))
 
 
-def load_workflow_config(config: dict, configfiles: list, schema_path: str | Path) -> Config:
-    """Validate Snakemake's ``config``: each of its ``configfiles`` alone (so errors name the file), then
-    the merged mapping, which also carries ``--config`` overrides."""
+def load_workflow_config(config: dict, configfiles: list) -> Config:
+    """Validate Snakemake's ``config``: each of its ``configfiles`` alone (each must be a complete experiment,
+    so an error names the file), then the mapping Snakemake built (files merged in the order given, then any
+    ``--config`` overrides)."""
     for f in configfiles:
-        validate_mapping(read_yaml(f), schema_path, str(f))
-    source = "merged config (" + ", ".join(str(f) for f in configfiles) + ", --config)"
-    validate_mapping(config, schema_path, source)
-    return from_mapping(config, source)
+        load_config(f)
+    return from_mapping(config, "merged config (" + " + ".join([*map(str, configfiles), "--config"]) + ")")
 
 
-def _build(tp: object, value: object) -> object:
-    """Convert schema-valid YAML data to the annotated type ``tp`` (dataclass, tuple, union, scalar)."""
-    if dataclasses.is_dataclass(tp):
-        hints = typing.get_type_hints(tp)
-        return tp(**{k: _build(hints[k], v) for k, v in value.items()})
-    origin = typing.get_origin(tp)
-    if origin is types.UnionType:  # X | None, or tuple[float, ...] | AlphaGrid (a list or a mapping)
-        if value is None:
-            return None
-        options = [t for t in typing.get_args(tp) if t is not type(None)]
-        return next(_build(t, value) for t in options if dataclasses.is_dataclass(t) == isinstance(value, dict))
-    if tp is dict:
-        return dict(value)
-    if origin is tuple:
-        return tuple(_build(typing.get_args(tp)[0], v) for v in value)
-    if tp is float:
-        return float(value)
-    return value
+def json_schema() -> dict:
+    """The JSON Schema (draft 2020-12) of a config file, generated from :class:`Config`."""
+    schema = Config.model_json_schema()
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema",
+            "$comment": "GENERATED from src/amorgs/config.py by `amorgs config-schema --write`; do not edit.",
+            **schema}
 
 
-def _check(cfg: Config, source: str) -> None:
-    """Cross-field rules the schema cannot express."""
-    from amorgs.problems import ALPHA_RANGES
-
-    for field in dataclasses.fields(cfg.problems):
-        name, problem = field.name, getattr(cfg.problems, field.name)
-        seen: dict[str, float] = {}
-        lo, hi = ALPHA_RANGES[name]
-        for a in (*problem.alphas.train_values(), *problem.alphas.test):
-            if not lo - 1e-12 <= a <= hi + 1e-12:
-                raise ConfigError(f"{source}: problems.{name}.alphas: α = {a!r} lies outside the problem's range [{lo:g}, {hi:g}]")
-            label = alpha_label(a)
-            if label in seen:
-                raise ConfigError(
-                    f"{source}: problems.{name}.alphas: α values {seen[label]!r} and {a!r} share the label "
-                    f"{label} (train and test must be distinct at three decimals)"
-                )
-            seen[label] = a
-    cvae = cfg.dejong_cvae
-    if cvae.enabled and not cfg.problems.dejong.enabled:
-        raise ConfigError(f"{source}: dejong_cvae.enabled needs problems.dejong.enabled: true")
-    if cvae.enabled and not cfg.problems.dejong.alphas.test:
-        raise ConfigError(f"{source}: dejong_cvae.enabled needs test α in problems.dejong.alphas.test")
-    cr3bp = cfg.problems.cr3bp
-    for key in ("cr3bp_analysis", "cr3bp_models", "ablation"):
-        if getattr(cfg, key).enabled and not cr3bp.enabled:
-            raise ConfigError(f"{source}: {key}.enabled needs problems.cr3bp.enabled: true")
-    for key in ("cr3bp_models", "ablation"):
-        if getattr(cfg, key).enabled and not cr3bp.alphas.test:
-            raise ConfigError(f"{source}: {key}.enabled needs test α in problems.cr3bp.alphas.test")
-    from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_NAMES
-
-    unknown = [s for s in cfg.ablation.samplers if s not in SAMPLER_NAMES]
-    if unknown:
-        raise ConfigError(f"{source}: ablation.samplers {unknown} are not registered arms {SAMPLER_NAMES}")
-    learned = [s for s in cfg.ablation.samplers if NEEDS_MODELS[s]]
-    if cfg.ablation.enabled and learned and not cfg.cr3bp_models.enabled:
-        raise ConfigError(f"{source}: ablation.samplers {learned} need cr3bp_models.enabled: true")
-    too_big = [c for c in cfg.ablation.iteration_caps if c > cr3bp.solver.max_iter]
-    if cfg.ablation.enabled and too_big:
-        raise ConfigError(
-            f"{source}: ablation.iteration_caps {too_big} exceed problems.cr3bp.solver.max_iter = "
-            f"{cr3bp.solver.max_iter}: a cap above the solver's own is not a real cap"
-        )
+def schema_text() -> str:
+    """The generated schema as the text of :data:`SCHEMA_PATH`."""
+    return json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n"

@@ -34,8 +34,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from amorgs.config import ConfigError, alpha_label
+from amorgs.alphas import alpha_label
+from amorgs.config import ConfigError
 from amorgs.errors import InputError
+from amorgs.solvers.options import IpoptOptions
 
 PROBLEM = "cr3bp"
 #: Defaults of ``amorgs design`` (see :class:`DesignRequest`).
@@ -229,7 +231,7 @@ class Prepared:
     the sampler with its provenance (``info``)."""
 
     cfg: object
-    solver_options: dict
+    solver_options: IpoptOptions
     problem: object
     sampler: object
     info: dict
@@ -247,8 +249,8 @@ def prepare(request: DesignRequest) -> Prepared:
     cfg = load_config(request.config)
     problem = get_problem(PROBLEM)
     sampler, info = make_sampler(request, cfg, problem)
-    solver_options = cfg.problems.cr3bp.solver_options()
-    info["solver_options"] = solver_options
+    solver_options = cfg.problems.cr3bp.solver
+    info["solver_options"] = solver_options.to_dict()
     return Prepared(cfg, solver_options, problem, sampler, info)
 
 

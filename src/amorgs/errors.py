@@ -1,7 +1,11 @@
-"""Errors a user can cause (bad input file, corrupt or tampered data): the CLI prints their message as one
-line naming the file, without a traceback.  Configuration errors are :class:`amorgs.config.ConfigError`."""
+"""Errors a user can cause: the CLI prints their message as one line naming the file or key, without a
+traceback (:func:`amorgs.cli.main`)."""
 
 from __future__ import annotations
+
+
+class ConfigError(ValueError):
+    """An invalid configuration; the message names the file and the dotted key."""
 
 
 class InputError(ValueError):

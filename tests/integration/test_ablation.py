@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 
 from amorgs.ablation.experiment import run_cell
+from amorgs.ablation.report import summarize
 from amorgs.ablation.statistics import capped_study, table6
-from amorgs.figures.ablation import fig21_solve_time_histograms, fig22_capped_convergence, fig23_amorgs_diversity
+from amorgs.alphas import metric_key
+from amorgs.figures.ablation import ablation_figures, fig23_amorgs_diversity
 from amorgs.models.samplers import UniformSampler
 from amorgs.problems import get_problem
 
@@ -26,8 +28,12 @@ def test_uniform_cell_statistics_and_figures():
     assert t6["percent_converged"].iloc[0] == pytest.approx(100 * cell["converged"].mean())
     capped, result = capped_study(cell, beta_kg=0.0, cap_s=float(cell["cpu_s"].max()), reference="uniform")
     assert capped["percent_within_cap"].iloc[0] == pytest.approx(100 * cell["converged"].mean())
-    for fig in (fig21_solve_time_histograms(cell, 0.0), fig22_capped_convergence({0.85: capped}),
-                fig23_amorgs_diversity(cell, cell[cell["converged"]], 0.0, sampler="uniform")):
+    summary = summarize(cell, cell[cell["converged"]], beta_kg=0.0, n_boot=50)
+    assert summary.metrics[metric_key("percent_hq", 0.85, "uniform")] == pytest.approx(100 * cell["converged"].mean())
+    figures = ablation_figures(summary)
+    figures["fig23_uniform"] = fig23_amorgs_diversity(summary.solves, summary.ground_truth, 0.0, sampler="uniform")
+    for fig in figures.values():
+        fig.canvas.draw()
         assert fig.axes
 
 
@@ -90,20 +96,23 @@ def test_reuse_baseline_cells_on_library_data():
         np.testing.assert_array_equal(cell[[f"guess_{v}" for v in problem.variable_names]].to_numpy(), again)
 
 
-def test_ablation_cell_cli_nearest_alpha(tmp_path, monkeypatch):
-    """`amorgs ablation-cell --sampler nearest_alpha` with the high-quality table, as the workflow calls it."""
+def test_ablation_cell_step_nearest_alpha(tmp_path, monkeypatch):
+    """The ablation_cell step with sampler nearest_alpha and the high-quality table, as the workflow runs it."""
     import pandas as pd
 
-    from amorgs.cli import main
+    from amorgs import steps
+    from amorgs.errors import InputError
 
+    from config_files import load
+
+    cfg = load("smoke")
     hq = _library_high_quality()
     monkeypatch.chdir(tmp_path)  # no results/mlflow here: tracking is a no-op
     hq.to_parquet("hq.parquet")
-    main(["ablation-cell", "--alpha", "0.85", "--sampler", "nearest_alpha", "--high-quality", "hq.parquet",
-          "--train-alphas", "0.7", "0.8", "0.9", "--model-seed", "11", "--starts", "1", "--seed", "2",
-          "--workers", "1", "--solver-options", '{"max_iter": 200, "max_wall_s": 60.0}', "--output", "cell.parquet"])
-    cell = pd.read_parquet("cell.parquet")
-    assert len(cell) == 1 and cell["sampler"].iloc[0] == "nearest_alpha" and cell["model_seed"].iloc[0] == 11
-    with pytest.raises(SystemExit, match="needs --high-quality"):
-        main(["ablation-cell", "--alpha", "0.85", "--sampler", "nearest_alpha", "--starts", "1", "--seed", "2",
-              "--output", "x.parquet"])
+    cell = {"alpha": "0.850", "sampler": "nearest_alpha"}
+    steps.run_step("ablation_cell", cfg, cell, {"high_quality": "hq.parquet"}, {"table": "cell.parquet"})
+    table = pd.read_parquet("cell.parquet")
+    assert len(table) == cfg.ablation.n_starts and set(table["sampler"]) == {"nearest_alpha"}
+    assert set(table["model_seed"]) == {cfg.cr3bp_models.seed}
+    with pytest.raises(InputError, match="nearest_alpha needs the high-quality table"):
+        steps.run_step("ablation_cell", cfg, cell, {}, {"table": "x.parquet"})

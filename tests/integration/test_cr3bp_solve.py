@@ -8,6 +8,8 @@ import pytest
 from amorgs.problems import get_problem
 from amorgs.problems.cr3bp.propagation import match_defect, propagate
 from amorgs.problems.cr3bp.transcription import variable_names
+from amorgs.solvers.ipopt import IpoptSolver
+from amorgs.solvers.options import IpoptOptions
 
 pytestmark = pytest.mark.slow
 
@@ -19,7 +21,9 @@ def problem():
 
 @pytest.fixture(scope="module")
 def solver(problem):
-    return problem.make_local_solver({"max_iter": 400})
+    solver = problem.make_local_solver(IpoptOptions(max_iter=400))
+    assert isinstance(solver, IpoptSolver) and solver.options.max_iter == 400
+    return solver
 
 
 @pytest.fixture(scope="module")
@@ -73,7 +77,7 @@ def test_dense_trajectory(problem, solution):
 
 
 def test_iteration_cap_gives_a_record_not_an_exception(problem):
-    capped = problem.make_local_solver({"max_iter": 2, "compile": "none"})
+    capped = problem.make_local_solver(IpoptOptions(max_iter=2, compile="none"))
     record = capped.solve(problem.sample_uniform(0.3, 1, np.random.default_rng(1))[0], 0.3)
     assert record.status == "Maximum_Iterations_Exceeded"
     assert not record.converged and record.iterations == 2 and math.isfinite(record.wall_s)
@@ -100,7 +104,8 @@ def test_bad_input_is_a_clear_value_error(problem, solver, alpha, mutate, field)
 
 
 def test_segment_steps_follow_thrust_level():
-    from amorgs.problems.cr3bp.transcription import ForwardBackwardTranscription, TranscriptionOptions
+    from amorgs.problems.cr3bp.transcription import ForwardBackwardTranscription
+    from amorgs.solvers.options import TranscriptionOptions
 
     opts = TranscriptionOptions()
     assert opts.for_alpha(1.0).steps_per_segment == opts.steps_per_segment
@@ -111,7 +116,7 @@ def test_segment_steps_follow_thrust_level():
 
 def test_stall_abort_is_a_row_with_its_own_status(problem):
     # Demand a 1e9-fold fall of the infeasibility every 5 iterations: a start far from feasible is stopped.
-    stalling = problem.make_local_solver(
+    stalling = problem.make_local_solver(  # a plain mapping (a config section) works as well
         {"max_iter": 50, "compile": "none", "stall_window": 5, "stall_factor": 1e-9, "stall_floor": 0.0}
     )
     record = stalling.solve(problem.sample_uniform(0.3, 1, np.random.default_rng(1))[0], 0.3)

@@ -73,14 +73,12 @@ def test_oem_read_back_matches_propagate_and_solutions_verify(designed):
     from amorgs.config import load_config
     from amorgs.problems import get_problem
     from amorgs.problems.cr3bp import frames
-    from amorgs.problems.cr3bp.problem import SolverOptions
     from amorgs.problems.cr3bp.propagation import independent_defect, propagate
 
     problem = get_problem("cr3bp")
     names = list(problem.variable_names)
     selected = pd.read_parquet(designed["out"] / "solutions.parquet")
-    cfg = load_config(REPO / "config/default.yaml", REPO / "workflow/schemas/config.schema.yaml")
-    verify_tol = SolverOptions.from_dict(cfg.problems.cr3bp.solver_options()).verify_tol
+    verify_tol = load_config(REPO / "config/default.yaml").problems.cr3bp.solver.verify_tol
     for _, row in selected.iterrows():
         x = row[names].to_numpy(dtype=float)
         assert independent_defect(x, ALPHA, problem.initial_state, problem.terminal_state) <= verify_tol

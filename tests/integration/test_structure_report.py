@@ -9,54 +9,65 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 
-from amorgs.analysis.structure_report import StructureParams, analyze
+from amorgs.alphas import alpha_label, distinct_alphas, metric_key, rows_at
+from amorgs.analysis.structure_report import StructureParams, StructureResult, analyze
 from amorgs.data.filter import high_quality
+from amorgs.figures.structure import structure_figures
+from amorgs.layout import ANALYSIS_FIGURES, ANALYSIS_TABLES
 
 FIXTURE = Path(__file__).resolve().parents[1] / "data" / "cr3bp_solutions_small.parquet"
 BETA_KG = 415.0
-FIGURES = (
-    "fig03_time_hyperplanes", "fig04_tof_histograms", "fig05_hyperplane_filtering",
-    "fig06_inplane_mass_contours", "fig07_moving_average_macro", "fig08_moving_average_micro",
-    "fig09_trajectories_across_hyperplanes", "fig10_trajectories_within_hyperplane", "fig11_funnels",
-    "fig12_funnels", "fig13_control_statistics",
-)
-TABLES = ("modes", "funnels", "control_statistics", "moving_average", "diversity", "diverse_subset", "trajectories")
 
 
-def _check(metrics: dict, tables: dict, figures: dict, df: pd.DataFrame) -> None:
-    assert set(FIGURES) <= set(figures) and all(isinstance(f, Figure) for f in figures.values())
-    assert set(TABLES) <= set(tables)
-    assert all(isinstance(v, float) for v in metrics.values())
-    for name, fig in figures.items():  # every figure renders
+def _check(result: StructureResult, df: pd.DataFrame) -> None:
+    """What holds for any solution set: declared tables and figures, counts, one mode entry per α."""
+    metrics, tables = result.metrics, result.tables
+    assert sorted(tables) == sorted(ANALYSIS_TABLES)
+    figures = structure_figures(result)
+    assert sorted(figures) == sorted(ANALYSIS_FIGURES)
+    for fig in figures.values():  # every figure renders
+        assert isinstance(fig, Figure)
         fig.canvas.draw()
+    assert all(isinstance(v, float) for v in metrics.values())
     converged = df[df["converged"]]
     assert metrics["n_converged"] == len(converged)
-    for a in converged["alpha"].unique():
-        assert f"n_modes_alpha_{a:g}" in metrics
+    for a in distinct_alphas(converged["alpha"]):
+        assert metrics[metric_key("n_converged", a)] == len(rows_at(converged, a))
+        assert metrics[metric_key("n_modes", a)] == len(rows_at(tables["modes"], a)) == len(result.modes[a])
     # Every detected mode has ≥ min_members converged solutions within δ (Eq. 32).
-    assert (tables["modes"]["n_converged"] >= StructureParams().modes.min_members).all()
+    assert (tables["modes"]["n_converged"] >= result.params.modes.min_members).all()
 
 
 @pytest.mark.skipif(not FIXTURE.is_file(), reason="fixture of real solves not present")
 def test_analyze_on_committed_real_solutions():
     df = pd.read_parquet(FIXTURE)
     hq = high_quality(df, min_final_mass_kg=BETA_KG)
-    metrics, tables, figures = analyze(df, hq, BETA_KG, StructureParams(n_trajectories=2))
-    _check(metrics, tables, figures, df)
-    assert metrics["n_modes_alpha_1"] >= 2
-    assert 0 < metrics["hyperplane_spacing_alpha_1"] < 40
-    f = tables["funnels"]
-    if len(f):
-        on_first = tables["modes"].query("alpha == @metrics['focus_alpha'] and tof == @metrics['funnel_plane_1_tof']")
-        assert f.loc[f["plane_tof"] == metrics["funnel_plane_1_tof"], "count"].sum() == on_first[
-            "n_high_quality"].iloc[0]
+    result = analyze(df, hq, BETA_KG, StructureParams(n_trajectories=2))
+    _check(result, df)
+    metrics, tables = result.metrics, result.tables
+    # Data at α = 0.1, 0.5, 1.0: the paper's Fig. 3 choice (0.1, 0.3, 1.0) becomes the nearest untaken α.
+    assert result.shown_alphas == [0.1, 0.5, 1.0]
+    assert metrics["focus_alpha"] == 1.0
+    assert metrics[metric_key("n_modes", 1.0)] >= 2
+    assert 0 < metrics[metric_key("hyperplane_spacing", 1.0)] < 40
+    # Tables 1–2: each funnel plane's funnels share out exactly its β-filtered solutions on that mode.
+    f, modes = tables["funnels"], rows_at(tables["modes"], 1.0)
+    assert len(result.funnel_planes) == 2
+    for j, (plane, T) in enumerate(result.funnel_planes, start=1):
+        assert metrics[f"funnel_plane_{j}_tof"] == T
+        assert metrics[f"funnels_plane_{j}"] == f.loc[f["plane_tof"] == T, "funnel"].nunique() >= 1
+        on_mode = modes.loc[(modes["tof"] - T).abs() < 1e-9, "n_high_quality"]
+        assert f.loc[f["plane_tof"] == T, "count"].sum() == on_mode.iloc[0] == len(plane)
+    # Figs. 9–10: the requested number of transfers, each from the β-filtered set on a hyperplane.
+    assert len(result.paths_across) == len(result.paths_within) == 2
+    assert all(p.m_f >= BETA_KG and alpha_label(p.alpha) == "1.000" for p in result.paths_across)
     d = tables["diversity"]
     assert (d["diverse_size"] <= d["n_high_quality"]).all() and (d["diverse_size"] >= 1).all()
+    assert d["n_high_quality"].sum() == len(hq)
 
 
 @pytest.mark.slow
@@ -65,7 +76,11 @@ def test_analyze_on_fresh_multistart():
 
     df = run_multistart("cr3bp", 1.0, 7, 6, workers=1, progress=False)
     hq = high_quality(df, min_final_mass_kg=BETA_KG)
-    metrics, tables, figures = analyze(df, hq, BETA_KG, StructureParams(n_trajectories=1))
-    _check(metrics, tables, figures, df)
-    assert metrics["focus_alpha"] == 1.0 or math.isnan(metrics["focus_alpha"])
-    assert np.isfinite(metrics["n_modes_alpha_1"]) if df["converged"].any() else True
+    result = analyze(df, hq, BETA_KG, StructureParams(n_trajectories=1))
+    _check(result, df)
+    if df["converged"].any():
+        assert result.metrics["focus_alpha"] == 1.0
+        assert result.metrics[metric_key("n_modes", 1.0)] == len(result.modes[1.0])
+    else:  # nothing converged: no focus α and no per-α metric is made up
+        assert math.isnan(result.metrics["focus_alpha"])
+        assert metric_key("n_modes", 1.0) not in result.metrics

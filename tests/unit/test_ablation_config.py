@@ -5,31 +5,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-import yaml
+from config_files import load, mapping, write
 
 from amorgs import config as C
-from amorgs import layout
+from amorgs import layout, steps
 from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_LABELS, SAMPLER_NAMES
 
-ROOT = Path(__file__).resolve().parents[2]
-SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
 
-
-def load(name: str) -> C.Config:
-    return C.load_config(ROOT / "config" / f"{name}.yaml", SCHEMA)
-
-
-def write(tmp_path: Path, mapping: dict) -> Path:
-    path = tmp_path / "c.yaml"
-    path.write_text(yaml.safe_dump(mapping))
-    return path
-
-
-def test_schema_enum_is_the_registry():
-    schema = yaml.safe_load(SCHEMA.read_text())
-    enum = schema["properties"]["ablation"]["properties"]["samplers"]["items"]["enum"]
-    assert tuple(enum) == SAMPLER_NAMES
+def test_the_registry_names_every_arm_once():
     assert set(SAMPLER_LABELS) == set(SAMPLER_NAMES) == set(NEEDS_MODELS)
+    assert len(set(SAMPLER_NAMES)) == len(SAMPLER_NAMES)
 
 
 def test_default_and_smoke_run_every_arm_small():
@@ -44,47 +29,45 @@ def test_study_config_size():
     assert set(cfg.ablation.samplers) == set(SAMPLER_NAMES)
     assert len(cfg.cr3bp_models.seeds) >= 3 and cfg.cr3bp_models.preset == "paper"
     assert cfg.ablation.n_starts * len(cfg.cr3bp_models.seeds) >= 200
-    cells = layout.ablation_cells(cfg)
+    cells = steps.outputs_of("ablation_cell", cfg, "table") + steps.outputs_of("ablation_cell_replicate", cfg, "table")
     assert len(cells) == len(cfg.cr3bp_models.seeds) * len(cfg.problems.cr3bp.alphas.test) * len(SAMPLER_NAMES)
     assert "results/cr3bp/ablation/seed=12/alpha=0.150/gmm_lstm.parquet" in cells
-    models = layout.replicate_models(cfg)
+    models = steps.outputs_of("train_cr3bp_replicate", cfg, "model")
     assert "results/cr3bp/models/seed=13/lstm.pt" in models and len(models) == 2 * 3
-    targets = layout.targets(cfg)
+    targets = steps.targets(cfg)
     assert set(models) <= set(targets)
     assert {"results/tables/ablation_ert.md", "results/figures/ablation_anytime.png"} <= set(targets)
 
 
 def test_replicate_jobs_are_expected():
-    from amorgs.checks import expected_jobs
-
     cfg = load("study")
-    jobs = expected_jobs(cfg)
+    jobs = steps.expected_jobs(cfg)
     rep = [w for rule, w in jobs if rule == "ablation_cell_replicate"]
     assert len(rep) == 2 * 2 * len(SAMPLER_NAMES)
     assert {"alpha": "0.850", "sampler": "nearest_alpha", "mseed": "13"} in rep
     trained = [w for rule, w in jobs if rule == "train_cr3bp_replicate"]
-    assert {"problem": "cr3bp", "model": "lstm", "mseed": "12"} in trained and len(trained) == 2 * 3
+    assert {"model": "lstm", "mseed": "12"} in trained and len(trained) == 2 * 3
 
 
 def test_iteration_caps_may_not_exceed_max_iter(tmp_path):
-    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
-    mapping["ablation"]["iteration_caps"] = [10, 60]  # smoke max_iter = 50
+    data = mapping()
+    data["ablation"]["iteration_caps"] = [10, 60]  # smoke max_iter = 50
     with pytest.raises(C.ConfigError, match=r"iteration_caps \[60\] exceed problems\.cr3bp\.solver\.max_iter = 50"):
-        C.load_config(write(tmp_path, mapping), SCHEMA)
+        C.load_config(write(tmp_path, data))
 
 
 def test_baselines_without_models(tmp_path):
-    mapping = yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
-    mapping["cr3bp_models"]["enabled"] = False
-    mapping["ablation"]["samplers"] = ["uniform", "nearest_alpha", "nearest_alpha_perturbed"]
-    cfg = C.load_config(write(tmp_path, mapping), SCHEMA)  # the reuse baselines need no model
+    data = mapping()
+    data["cr3bp_models"]["enabled"] = False
+    data["ablation"]["samplers"] = ["uniform", "nearest_alpha", "nearest_alpha_perturbed"]
+    cfg = C.load_config(write(tmp_path, data))  # the reuse baselines need no model
     assert cfg.ablation.samplers[1] == "nearest_alpha"
-    mapping["ablation"]["samplers"] = ["uniform", "gmm_lstm"]
+    data["ablation"]["samplers"] = ["uniform", "gmm_lstm"]
     with pytest.raises(C.ConfigError, match=r"\['gmm_lstm'\] need cr3bp_models\.enabled"):
-        C.load_config(write(tmp_path, mapping), SCHEMA)
-    mapping["ablation"]["perturbation_scale"] = -0.1
+        C.load_config(write(tmp_path, data))
+    data["ablation"]["perturbation_scale"] = -0.1
     with pytest.raises(C.ConfigError, match="perturbation_scale"):
-        C.load_config(write(tmp_path, mapping), SCHEMA)
+        C.load_config(write(tmp_path, data))
 
 
 def test_figures_do_not_import_torch():
@@ -112,21 +95,20 @@ def test_check_outputs_inspects_the_new_ablation_outputs(tmp_path, monkeypatch):
     bad = "results/tables/ablation_rates.csv"
     pd.DataFrame({"x": [1]}).to_csv(bad, index=False)
     assert "lacks column(s) ['alpha', 'sampler']" in _check_file(bad)
-    Path(layout.ABLATION_SUMMARY).write_text(json.dumps({"percent_hq_a0.150_uniform": 50.0}))
-    assert "aRT_iterations_" in _check_file(layout.ABLATION_SUMMARY)
-    Path(layout.ABLATION_SUMMARY).write_text(json.dumps({"aRT_iterations_a0.150_uniform": 50.0}))
+    Path(layout.ABLATION_SUMMARY).write_text(json.dumps({"percent_hq/alpha_0.150/uniform": 50.0}))
+    assert "aRT_iterations/" in _check_file(layout.ABLATION_SUMMARY)
+    Path(layout.ABLATION_SUMMARY).write_text(json.dumps({"aRT_iterations/alpha_0.150/uniform": 50.0}))
     assert _check_file(layout.ABLATION_SUMMARY) is None
 
 
-def test_ablation_report_cli_writes_every_declared_output(tmp_path, monkeypatch):
-    """`amorgs ablation-report` with the issue-11 options writes every table and figure layout declares."""
+def test_ablation_report_step_writes_every_declared_output(tmp_path, monkeypatch):
+    """The ablation_report step, with the issue-11 settings, writes every table and figure the step declares."""
     import json
 
     import numpy as np
     import pandas as pd
 
-    from amorgs.cli import main
-
+    cfg = load("smoke")
     monkeypatch.chdir(tmp_path)  # no results/mlflow here: tracking is a no-op
     rng = np.random.default_rng(0)
     cells = []
@@ -148,17 +130,14 @@ def test_ablation_report_cli_writes_every_declared_output(tmp_path, monkeypatch)
     truth = pd.concat(cells)[lambda d: d["converged"]]
     truth.to_parquet(tmp_path / "hq.parquet")
     t = "results/tables"
-    main(["ablation-report", "--cells", *paths, "--high-quality", str(tmp_path / "hq.parquet"), "--beta", "415",
-          "--summary", layout.ABLATION_SUMMARY, "--table6-csv", f"{t}/table6.csv", "--table6-md", f"{t}/table6.md",
-          "--capped", f"{t}/ablation_capped.csv", "--coverage", f"{t}/ablation_coverage.csv",
-          "--beta-sweep", "425", "435", "--iteration-caps", "50", "200", "--max-iter", "1000", "--n-boot", "100",
-          "--seed", "3", "--figures-dir", "results/figures"])
+    steps.run_step("ablation_report", cfg, {}, {"cells": paths, "high_quality": str(tmp_path / "hq.parquet")},
+                   steps.registry()["ablation_report"].outputs({}))
     for name in layout.ABLATION_TABLES:
         assert (tmp_path / t / name).stat().st_size > 0, name
     for name in layout.ABLATION_FIGURES:
         assert (tmp_path / "results/figures" / f"{name}.png").read_bytes().startswith(b"\x89PNG"), name
     summary = json.loads(Path(layout.ABLATION_SUMMARY).read_text())
-    assert "aRT_iterations_a0.850_nearest_alpha" in summary and "itcap_percent_a0.150_cap50_amorgs" in summary
+    assert "aRT_iterations/alpha_0.850/nearest_alpha" in summary and "itcap_percent/alpha_0.150/amorgs/cap_50" in summary
     from amorgs.checks import _check_file
 
     assert [m for m in (_check_file(f"{t}/{n}") for n in layout.ABLATION_TABLES) if m] == []

@@ -61,7 +61,7 @@ def test_capped_study_and_acceleration(ablation):
 def test_wilson_interval_bounds():
     lo, hi = wilson_interval(0, 10)
     assert lo == pytest.approx(0.0, abs=1e-9) and 0 < hi < 40
-    assert wilson_interval(5, 0) == (math.nan, math.nan) or all(math.isnan(v) for v in wilson_interval(5, 0))
+    assert all(math.isnan(v) for v in wilson_interval(5, 0))
 
 
 def test_hyperplane_coverage_equal_cpu(ablation):
@@ -75,24 +75,35 @@ def test_hyperplane_coverage_equal_cpu(ablation):
 
 def test_summarize_report(ablation):
     from amorgs.ablation.report import summarize, table6_markdown
+    from amorgs.figures.ablation import ablation_figures
+    from amorgs.layout import ABLATION_FIGURES
 
     rng = np.random.default_rng(0)
     truth = pd.DataFrame({"alpha": 0.15, "tau_s": rng.normal(18, 0.05, 30), "tau_i": np.ones(30), "tau_f": np.ones(30),
                           "m_f": np.full(30, 430.0), "converged": True})
     ablation = ablation.assign(guess_tau_s=5.0, guess_tau_i=1.0, guess_tau_f=1.0, guess_m_f=400.0)
-    metrics, tables, figures = summarize(ablation, truth, 415.0, n_boot=100, beta_sweep=(425.0, 435.0),
-                                         iteration_caps=(200, 1000), max_iter=1000)
-    assert metrics["percent_hq_a0.150_amorgs"] == 75.0
-    assert metrics["hyperplanes_ground_truth_a0.150"] == 1.0
-    assert metrics["hyperplanes_reached_a0.150_amorgs"] == 1.0
-    assert set(figures) == {"fig21_solve_time_histograms", "fig22_capped_convergence", "fig23_amorgs_diversity",
-                            "fig22_iteration_capped", "ablation_speedups", "ablation_beta_sweep", "ablation_anytime"}
+    # the truth also holds rows at another α and an α written with float noise (same label, same α)
+    truth = pd.concat([truth, truth.assign(alpha=0.5)]).assign(alpha=lambda d: d["alpha"] + 1e-9)
+    summary = summarize(ablation, truth, 415.0, n_boot=100, beta_sweep=(425.0, 435.0),
+                        iteration_caps=(200, 1000), max_iter=1000)
+    metrics, tables = summary.metrics, summary.tables
+    assert metrics["percent_hq/alpha_0.150/amorgs"] == 75.0
+    assert metrics["hyperplanes_ground_truth/alpha_0.150"] == 1.0
+    assert metrics["hyperplanes_reached/alpha_0.150/amorgs"] == 1.0
     # amorgs 3 HQ in 1600 iterations, uniform 1 in 3800: speed-up (3800/1) / (1600/3)
-    assert metrics["speedup_iterations_a0.150_amorgs"] == pytest.approx(3800 / (1600 / 3))
-    assert metrics["rate_percent_a0.150_amorgs"] == 75.0 and "rate_percent_a0.150_amorgs_beta435" in metrics
-    assert metrics["itcap_percent_a0.150_cap200_amorgs"] == 50.0  # the 100- and 200-iteration solves
+    assert metrics["aRT_iterations/alpha_0.150/amorgs"] == pytest.approx(1600 / 3)
+    assert metrics["speedup_iterations/alpha_0.150/amorgs"] == pytest.approx(3800 / (1600 / 3))
+    assert metrics["rate_percent/alpha_0.150/amorgs"] == 75.0
+    assert metrics["rate_percent/alpha_0.150/amorgs/beta_435"] == 0.0  # every solve has m_f ≤ 430 kg < 435 kg
+    assert metrics["itcap_percent/alpha_0.150/amorgs/cap_200"] == 50.0  # the 100- and 200-iteration solves
     assert set(tables["beta_sweep"]["beta_kg"]) == {415.0, 425.0, 435.0}
-    assert metrics["best_m_f_a0.150_amorgs"] == 430.0
+    assert metrics["best_m_f/alpha_0.150/amorgs"] == 430.0
+    assert summary.solves["high_quality"].sum() == 3 + 1
+    assert len(summary.ground_truth) == 30  # the α = 0.5 rows are not ground truth of α = 0.15
+    figures = ablation_figures(summary)
+    assert sorted(figures) == sorted(ABLATION_FIGURES)
+    for fig in figures.values():
+        fig.canvas.draw()
     md = table6_markdown(tables["table6"])
     assert "| | Uniform | AmorGS |" in md and "| Percentage (%) | 25.0 | 75.0 |" in md
 

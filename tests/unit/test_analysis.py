@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from amorgs.analysis import controls, diversity, funnels, hyperplanes, moving_average
-from amorgs.analysis.structure_report import StructureParams
+from amorgs.analysis.structure_params import StructureParams
 
 
 def _plane_points(rng, planes, per_plane, jitter):
@@ -236,21 +236,53 @@ def test_structure_params_from_dict():
     assert p.funnel_planes == (18.7, 38.2)
     with pytest.raises(ValueError, match="unknown"):
         StructureParams.from_dict({"delta": 0.3})
+    with pytest.raises(ValueError, match=r"modes\.bandwidthz"):
+        StructureParams.from_dict({"modes": {"bandwidthz": 0.3}})
+
+
+@pytest.mark.parametrize("values, field", [
+    ({"histogram_bin": 0.0}, "StructureParams.histogram_bin"),
+    ({"fig03_alphas": [0.1, -0.3]}, "StructureParams.fig03_alphas"),
+    ({"n_trajectories": 7}, "StructureParams.n_trajectories"),
+    ({"control_interval": "band"}, "StructureParams.control_interval"),
+    ({"modes": {"delta": 0.0}}, "ModeParams.delta"),
+    ({"funnels": {"n_init": 0}}, "FunnelParams.n_init"),
+    ({"diversity": {"time_scale": [40.0, 0.0, 15.0]}}, "DiversityParams.time_scale"),
+])
+def test_structure_params_out_of_range_names_the_field(values, field):
+    with pytest.raises(ValueError, match=field):
+        StructureParams.from_dict(values)
+
+
+def test_structure_params_module_is_stdlib_only():
+    """The config validates ``cr3bp_analysis.params`` with these classes: importing them loads no numerics."""
+    import subprocess
+    import sys
+
+    code = "import sys, amorgs.analysis.structure_params; print(sorted({'numpy', 'pandas', 'scipy'} & set(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
 
 
 @pytest.mark.parametrize("n, converged", [(0, True), (4, False), (2, True)])
 def test_analyze_degrades_on_tiny_sets(n, converged):
     """No converged solutions, or too few for any hyperplane: every figure still draws, nothing is made up."""
     from amorgs.analysis.structure_report import analyze
+    from amorgs.figures.structure import structure_figures
+    from amorgs.layout import ANALYSIS_FIGURES
     from amorgs.problems.cr3bp.transcription import variable_names
 
     rng = np.random.default_rng(6)
     x = rng.uniform(0, 1, (n, 64)) * np.r_[40.0, 15.0, 15.0, 0.0, np.ones(60)] + np.r_[0, 0, 0, 420.0, np.zeros(60)]
     df = pd.DataFrame(x, columns=variable_names()).assign(alpha=1.0, converged=converged)
-    metrics, tables, figures = analyze(df, df[df["converged"]], 415.0)
-    assert len(figures) == 11
+    result = analyze(df, df[df["converged"]], 415.0)
+    figures = structure_figures(result)
+    assert sorted(figures) == sorted(ANALYSIS_FIGURES)
     for fig in figures.values():
         fig.canvas.draw()
-    assert tables["modes"].empty and tables["funnels"].empty
-    assert metrics.get("n_modes_alpha_1", 0.0) == 0.0
-    assert math.isnan(metrics["hyperplane_spacing"])
+    assert result.tables["modes"].empty and result.tables["funnels"].empty
+    if converged and n:
+        assert result.metrics["n_modes/alpha_1.000"] == 0.0  # 2 solutions < min_members: no hyperplane
+    else:
+        assert "n_modes/alpha_1.000" not in result.metrics  # no converged solution at α = 1
+    assert math.isnan(result.metrics["hyperplane_spacing"])

@@ -19,7 +19,15 @@ def subcommands() -> dict[str, argparse.ArgumentParser]:
 
 
 def test_there_are_subcommands():
-    assert {"generate", "filter", "check-outputs", "ui"} <= set(subcommands())
+    assert {"step", "check-outputs", "ui", "config-schema", "design", "library-grow"} <= set(subcommands())
+
+
+def test_the_step_subcommand_knows_every_rule():
+    from amorgs.steps import registry
+
+    description = subcommands()["step"].description
+    assert all(f"  {name} " in description for name in registry())
+    assert all(step.description for step in registry().values())
 
 
 @pytest.mark.parametrize("name", sorted(subcommands()))

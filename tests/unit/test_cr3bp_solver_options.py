@@ -1,42 +1,22 @@
-"""CR3BP solver/transcription options: validation, α step law, stored-vector clipping (no IPOPT solves)."""
+"""CR3BP transcription options and compile cache: α step law, stored-vector clipping (no IPOPT solves).
+
+Validation, defaults and hashes of IpoptOptions: tests/unit/test_solver_options.py.
+"""
 
 import math
 
 import numpy as np
-import pytest
 
 from amorgs.problems import get_problem
-from amorgs.problems.cr3bp.problem import SolverOptions, cpu_identity
-from amorgs.problems.cr3bp.transcription import ForwardBackwardTranscription, TranscriptionOptions
+from amorgs.problems.cr3bp.transcription import ForwardBackwardTranscription
+from amorgs.solvers.codegen import cpu_identity
+from amorgs.solvers.options import IpoptOptions, TranscriptionOptions
 
 
-def test_defaults_validate_and_hash_changes_with_new_fields():
-    base = SolverOptions.from_dict({})
-    assert base.stall_window >= 0 and 0 < base.stall_factor <= 1
-    assert "-ffp-contract=off" in base.compile_flags
-    assert SolverOptions.from_dict({"compile_flags": "-O2"}).digest() != base.digest()
-    assert SolverOptions.from_dict({"stall_window": 300}).digest() != base.digest()
-    assert SolverOptions.from_dict({"ipopt_options": {"mu_strategy": "monotone"}}).digest() != base.digest()
-
-
-@pytest.mark.parametrize(
-    "bad",
-    [
-        {"stall_window": -1},
-        {"stall_window": 1.5},
-        {"stall_factor": 0.0},
-        {"stall_factor": 2.0},
-        {"stall_floor": -1e-6},
-        {"compile_flags": ""},
-        {"ipopt_options": ["mu_strategy"]},
-        {"transcription": {"min_steps_per_segment": 0}},
-        {"transcription": {"no_such_option": 1}},
-        {"no_such_option": 1},
-    ],
-)
-def test_invalid_options_raise(bad):
-    with pytest.raises(ValueError):
-        SolverOptions.from_dict(bad)
+def test_defaults_keep_bit_identical_flags_and_no_abort():
+    base = IpoptOptions()
+    assert base.stall_window == 0 and 0 < base.stall_factor <= 1
+    assert "-ffp-contract=off" in base.compile_flags and base.compile == "cache"
 
 
 def test_step_law_up_and_optionally_down():

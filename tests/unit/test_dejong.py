@@ -23,6 +23,7 @@ from amorgs.problems.dejong import (
     minima_matrix,
     true_minima,
 )
+from amorgs.solvers.options import BfgsOptions
 
 ALPHAS = (0.0, math.pi / 9, 0.7, math.pi / 2)
 
@@ -176,6 +177,15 @@ def test_bad_solver_options_raise():
         DeJong5().make_local_solver({"tolerance": 1e-6})
     with pytest.raises(ValueError, match="gtol"):
         DeJong5().make_local_solver({"gtol": 0.0})
+
+
+def test_solver_takes_typed_options_and_mappings_alike():
+    typed = DeJong5().make_local_solver(BfgsOptions(maxiter=3))
+    assert DeJong5.options_type is BfgsOptions and typed.options == BfgsOptions(maxiter=3)
+    assert typed.options_hash == BfgsOptions(maxiter=3).digest()
+    a = typed.solve(np.array([10.0, -10.0]), 0.2)
+    b = DeJong5().make_local_solver({"maxiter": 3}).solve(np.array([10.0, -10.0]), 0.2)
+    assert a.status == b.status == "max_iterations" and np.array_equal(a.x, b.x) and a.objective == b.objective
 
 
 def test_sample_uniform_shape_bounds_determinism():

@@ -6,6 +6,7 @@ into per-shard tables as the generate rule writes them.
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -44,6 +45,17 @@ def real_shards(tmp_path: Path, label: str = "0.500", n: int = 2) -> Path:
 
 def amorgs(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "amorgs", *args], capture_output=True, text=True, timeout=120)
+
+
+def merge_job(fresh: str, library: list[str], library_dir, output, max_rows: int | None = None) -> str:
+    """The --job JSON of one merge job at α = 0.500, as the merge rule writes it."""
+    return json.dumps({
+        "rule": "merge", "wildcards": {"problem": "cr3bp", "alpha": "0.500"},
+        "input": {"fresh": [str(fresh)], "library": [str(p) for p in library]}, "output": {"table": str(output)},
+        "threads": 1,
+        "settings": {"problem": "cr3bp", "library_enabled": True, "library_path": str(library_dir),
+                     "library_max_rows": max_rows},
+    })
 
 
 def test_committed_library_matches_its_manifest():
@@ -118,9 +130,8 @@ def test_merge_refuses_an_edited_library_file_naming_it(tmp_path):
     df.loc[0, "m_f"] = 999.0
     df.to_parquet(target, index=False)
     fresh = real_shards(tmp_path, n=1)
-    res = amorgs("merge", "--problem", "cr3bp", "--alpha", "0.500", "--inputs",
-                 str(next(fresh.glob("alpha=*/shard-*.parquet"))), "--library", str(target),
-                 "--library-dir", str(lib), "--output", str(tmp_path / "merged.parquet"))
+    res = amorgs("step", "--job", merge_job(next(fresh.glob("alpha=*/shard-*.parquet")), [target], lib,
+                                            tmp_path / "merged.parquet"))
     assert res.returncode != 0
     assert "SHA-256" in res.stderr and str(target) in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "merged.parquet").exists()
@@ -148,8 +159,7 @@ def test_merge_takes_a_fixed_slice_of_the_library(tmp_path):
     df.to_parquet(shard, index=False)
     files = [str(p) for p in library_files(LIBRARY, "cr3bp", "0.500")]
     out = tmp_path / "merged.parquet"
-    res = amorgs("merge", "--problem", "cr3bp", "--alpha", "0.500", "--inputs", str(shard), "--library", *files,
-                 "--library-dir", str(LIBRARY), "--library-max-rows", "5", "--output", str(out))
+    res = amorgs("step", "--job", merge_job(shard, files, LIBRARY, out, max_rows=5))
     assert res.returncode == 0, res.stderr
     merged = pd.read_parquet(out)
     library = read_library(LIBRARY, "cr3bp", "0.500")

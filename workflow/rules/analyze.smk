@@ -1,18 +1,13 @@
 # Stage 3, analysis: the structure of the CR3BP solution set (paper Sec. III.B): hyperplanes, funnels, moving
-# averages, diversity and control statistics as tables, Figs. 3–13 as PNG.
+# averages, diversity and control statistics as tables, Figs. 3–13 as PNG.  amorgs.steps.analyze
 
 
 rule analyze_cr3bp:
     input:
-        solutions=layout.alpha_tables(CFG, "cr3bp"),
+        solutions=steps.outputs_of("merge", CFG, "table", problem="cr3bp"),
         high_quality=layout.HIGH_QUALITY.format(problem="cr3bp"),
     output:
-        metrics=layout.CR3BP_ANALYSIS_METRICS,
-        tables=[layout.CR3BP_ANALYSIS_TABLE.format(name=n) for n in layout.ANALYSIS_TABLES],
-        figures=[
-            report(layout.FIGURE.format(name=n), caption="../report/cr3bp_structure.rst", category="CR3BP structure")
-            for n in layout.ANALYSIS_FIGURES
-        ],
+        **step_outputs("analyze_cr3bp"),
     log:
         "logs/analyze_cr3bp.log",
     conda:
@@ -22,11 +17,6 @@ rule analyze_cr3bp:
         mem_mb=CFG.resources.analyze.mem_mb,
         runtime=CFG.resources.analyze.runtime_min,
     params:
-        beta=CFG.problems.cr3bp.filter.min_final_mass_kg,
-        structure=json.dumps(CFG.cr3bp_analysis.params, sort_keys=True),
-        tables_dir=lambda w, output: os.path.dirname(output.tables[0]),
-        figures_dir=lambda w, output: os.path.dirname(output.figures[0]),
+        job=step_job("analyze_cr3bp"),
     shell:
-        "python -m amorgs analyze-cr3bp --inputs {input.solutions} --high-quality {input.high_quality} "
-        "--beta {params.beta} --params {params.structure:q} --metrics {output.metrics} "
-        "--tables-dir {params.tables_dir} --figures-dir {params.figures_dir} > {log} 2>&1"
+        STEP

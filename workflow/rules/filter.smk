@@ -1,12 +1,11 @@
-# Stage 2: the β-filter over every α of a problem, with a per-α quality report.
+# Stage 2: the β-filter over every α table of a problem, with a per-α quality report.  amorgs.steps.filter
 
 
 rule filter:
     input:
-        lambda w: layout.alpha_tables(CFG, w.problem),
+        tables=lambda w: steps.outputs_of("merge", CFG, "table", problem=w.problem),
     output:
-        table=layout.HIGH_QUALITY,
-        report=layout.QUALITY_REPORT,
+        **step_outputs("filter"),
     log:
         "logs/filter/{problem}.log",
     conda:
@@ -16,7 +15,6 @@ rule filter:
         mem_mb=CFG.resources.filter.mem_mb,
         runtime=CFG.resources.filter.runtime_min,
     params:
-        thresholds=filter_arguments,
+        job=step_job("filter"),
     shell:
-        "python -m amorgs filter --problem {wildcards.problem} --inputs {input} {params.thresholds} "
-        "--output {output.table} --report {output.report} > {log} 2>&1"
+        STEP

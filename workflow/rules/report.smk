@@ -1,13 +1,11 @@
-# The paper figures, one rule each, saved as results/figures/figNN_<what>.png and shown in `snakemake --report`.
+# The paper figures drawn by a rule of their own (the others come out of analyze_cr3bp, predict_cr3bp and
+# ablation_report), saved as results/figures/figNN_<what>.png and shown in `snakemake --report`.
+# amorgs.steps.dejong
 
 
 rule fig02_foxholes:
     output:
-        report(
-            layout.FIGURE.format(name="fig02_foxholes"),
-            caption="../report/fig02_foxholes.rst",
-            category="De Jong",
-        ),
+        **step_outputs("fig02_foxholes"),
     log:
         "logs/fig02_foxholes.log",
     conda:
@@ -16,20 +14,18 @@ rule fig02_foxholes:
     resources:
         mem_mb=CFG.resources.figure.mem_mb,
         runtime=CFG.resources.figure.runtime_min,
+    params:
+        job=step_job("fig02_foxholes"),
     shell:
-        "python -m amorgs fig02-foxholes --output {output} > {log} 2>&1"
+        STEP
 
 
 rule fig16_dejong_predictions:
     input:
-        data=layout.HIGH_QUALITY.format(problem="dejong"),
+        high_quality=layout.HIGH_QUALITY.format(problem="dejong"),
         samples=layout.DEJONG_SAMPLES,
     output:
-        report(
-            layout.FIGURE.format(name="fig16_dejong_predictions"),
-            caption="../report/fig16_dejong_predictions.rst",
-            category="De Jong",
-        ),
+        **step_outputs("fig16_dejong_predictions"),
     log:
         "logs/fig16_dejong_predictions.log",
     conda:
@@ -39,7 +35,6 @@ rule fig16_dejong_predictions:
         mem_mb=CFG.resources.figure.mem_mb,
         runtime=CFG.resources.figure.runtime_min,
     params:
-        train_alphas=" ".join(map(repr, CFG.problems.dejong.alphas.train_values())),
+        job=step_job("fig16_dejong_predictions"),
     shell:
-        "python -m amorgs fig16-dejong-predictions --data {input.data} --samples {input.samples} "
-        "--train-alphas {params.train_alphas} --output {output} > {log} 2>&1"
+        STEP

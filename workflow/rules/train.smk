@@ -1,12 +1,15 @@
-# Stage 4, models: train the GMM-prior CVAE on the filtered De Jong minima at the training α, then sample it
-# at the held-out test α and score the samples against the analytic minima.
+# Stage 4, models.  De Jong: the GMM-prior CVAE on the filtered minima at the training α, sampled at the
+# held-out test α and scored against the analytic minima (amorgs.steps.dejong).  CR3BP (paper Sec. IV): each
+# model trained on the high-quality rows at the training α only (the test α are generated for the ground
+# truth, never trained on); Fig. 18's GMM-CVAEs on fractions of the data; the models of the extra training
+# seeds (the ablation's replicates); the samples at the test α (amorgs.steps.train, amorgs.steps.predict).
 
 
 rule train_dejong_cvae:
     input:
-        layout.HIGH_QUALITY.format(problem="dejong"),
+        high_quality=layout.HIGH_QUALITY.format(problem="dejong"),
     output:
-        layout.DEJONG_MODEL,
+        **step_outputs("train_dejong_cvae"),
     log:
         "logs/train_dejong_cvae.log",
     conda:
@@ -16,24 +19,16 @@ rule train_dejong_cvae:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
     params:
-        train_alphas=" ".join(map(repr, CFG.problems.dejong.alphas.train_values())),
-        preset=CFG.dejong_cvae.preset,
-        lr=CFG.dejong_cvae.learning_rate,
-        epochs=CFG.dejong_cvae.epochs,
-        batch_size=CFG.dejong_cvae.batch_size,
-        seed=CFG.dejong_cvae.seed,
+        job=step_job("train_dejong_cvae"),
     shell:
-        "python -m amorgs train-dejong-cvae --data {input} --train-alphas {params.train_alphas} "
-        "--preset {params.preset} --learning-rate {params.lr} --epochs {params.epochs} "
-        "--batch-size {params.batch_size} --seed {params.seed} --threads {threads} --output {output} > {log} 2>&1"
+        STEP
 
 
 rule predict_dejong_cvae:
     input:
-        layout.DEJONG_MODEL,
+        model=layout.DEJONG_MODEL,
     output:
-        samples=layout.DEJONG_SAMPLES,
-        metrics=layout.DEJONG_METRICS,
+        **step_outputs("predict_dejong_cvae"),
     log:
         "logs/predict_dejong_cvae.log",
     conda:
@@ -43,25 +38,16 @@ rule predict_dejong_cvae:
         mem_mb=CFG.resources.predict.mem_mb,
         runtime=CFG.resources.predict.runtime_min,
     params:
-        test_alphas=" ".join(map(repr, CFG.problems.dejong.alphas.test)),
-        n_samples=CFG.dejong_cvae.n_samples,
-        seed=CFG.dejong_cvae.seed,
-        radius=CFG.dejong_cvae.radius,
+        job=step_job("predict_dejong_cvae"),
     shell:
-        "python -m amorgs predict-dejong-cvae --model {input} --test-alphas {params.test_alphas} "
-        "--n-samples {params.n_samples} --seed {params.seed} --radius {params.radius} "
-        "--samples {output.samples} --metrics {output.metrics} > {log} 2>&1"
-
-
-# The CR3BP models (paper Sec. IV): each trained on the high-quality rows at the training α only (the test α
-# are generated for the ground truth, never trained on); plus Fig. 18's GMM-CVAEs on fractions of the data.
+        STEP
 
 
 rule train_cr3bp:
     input:
-        layout.HIGH_QUALITY.format(problem="cr3bp"),
+        high_quality=layout.HIGH_QUALITY.format(problem="cr3bp"),
     output:
-        layout.CR3BP_MODEL,
+        **step_outputs("train_cr3bp"),
     log:
         "logs/train_cr3bp/{model}.log",
     conda:
@@ -71,17 +57,16 @@ rule train_cr3bp:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
     params:
-        training=train_cr3bp_params(),
+        job=step_job("train_cr3bp"),
     shell:
-        "python -m amorgs train-cr3bp --data {input} --model {wildcards.model} {params.training} "
-        "--threads {threads} --output {output} > {log} 2>&1"
+        STEP
 
 
 rule train_cr3bp_fraction:
     input:
-        layout.HIGH_QUALITY.format(problem="cr3bp"),
+        high_quality=layout.HIGH_QUALITY.format(problem="cr3bp"),
     output:
-        layout.CR3BP_FRACTION_MODEL,
+        **step_outputs("train_cr3bp_fraction"),
     log:
         "logs/train_cr3bp/fraction={fraction}/cvae_gmm.log",
     conda:
@@ -91,26 +76,37 @@ rule train_cr3bp_fraction:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
     params:
-        training=train_cr3bp_params(),
+        job=step_job("train_cr3bp_fraction"),
     shell:
-        "python -m amorgs train-cr3bp --data {input} --model cvae_gmm --fraction {wildcards.fraction} "
-        "--fraction-label {wildcards.fraction} {params.training} --threads {threads} --output {output} > {log} 2>&1"
+        STEP
+
+
+rule train_cr3bp_replicate:
+    input:
+        high_quality=layout.HIGH_QUALITY.format(problem="cr3bp"),
+    output:
+        **step_outputs("train_cr3bp_replicate"),
+    log:
+        "logs/train_cr3bp/seed={mseed}/{model}.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: CFG.resources.train.threads
+    resources:
+        mem_mb=CFG.resources.train.mem_mb,
+        runtime=CFG.resources.train.runtime_min,
+    params:
+        job=step_job("train_cr3bp_replicate"),
+    shell:
+        STEP
 
 
 rule predict_cr3bp:
     input:
-        models=[layout.CR3BP_MODEL.format(model=m) for m in layout.CR3BP_MODELS],
-        fraction_models=layout.fraction_models(CFG),
+        models=steps.outputs_of("train_cr3bp", CFG, "model"),
+        fraction_models=steps.outputs_of("train_cr3bp_fraction", CFG, "model"),
         high_quality=layout.HIGH_QUALITY.format(problem="cr3bp"),
     output:
-        samples=layout.CR3BP_SAMPLES,
-        metrics=layout.CR3BP_PREDICTION_METRICS,
-        figures=[
-            report(
-                layout.FIGURE.format(name=n), caption="../report/cr3bp_predictions.rst", category="CR3BP predictions"
-            )
-            for n in layout.PREDICTION_FIGURES
-        ],
+        **step_outputs("predict_cr3bp"),
     log:
         "logs/predict_cr3bp.log",
     conda:
@@ -120,17 +116,6 @@ rule predict_cr3bp:
         mem_mb=CFG.resources.predict.mem_mb,
         runtime=CFG.resources.predict.runtime_min,
     params:
-        models_dir=lambda w, input: os.path.dirname(input.models[0]),
-        # FRACTION=PATH, the fraction read back from the folder name fraction={f}
-        fraction_models=lambda w, input: " ".join(
-            f"{os.path.basename(os.path.dirname(p)).split('=', 1)[1]}={p}" for p in input.fraction_models
-        ),
-        test_alphas=floats(CFG.problems.cr3bp.alphas.test),
-        n_samples=CFG.cr3bp_models.n_samples,
-        seed=CFG.cr3bp_models.seed,
-        figures_dir=lambda w, output: os.path.dirname(output.figures[0]),
+        job=step_job("predict_cr3bp"),
     shell:
-        "python -m amorgs predict-cr3bp --models-dir {params.models_dir} --fraction-models {params.fraction_models} "
-        "--high-quality {input.high_quality} --test-alphas {params.test_alphas} --n-samples {params.n_samples} "
-        "--seed {params.seed} --samples {output.samples} --metrics {output.metrics} "
-        "--figures-dir {params.figures_dir} > {log} 2>&1"
+        STEP

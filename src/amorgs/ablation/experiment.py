@@ -11,7 +11,7 @@ import pandas as pd
 
 from amorgs.models.samplers import Sampler
 from amorgs.problems import get_problem
-from amorgs.solvers.multistart import records_table, solve_guesses
+from amorgs.solvers.multistart import OptionsLike, records_table, solve_guesses
 
 
 def run_cell(
@@ -20,13 +20,14 @@ def run_cell(
     sampler: Sampler,
     n: int,
     seed: int,
-    solver_options: dict | None = None,
+    solver_options: OptionsLike = None,
     workers: int = 1,
     progress: bool = True,
 ) -> pd.DataFrame:
     """Draw ``n`` guesses with ``default_rng(seed)`` from ``sampler`` and solve them; one row per start.
 
-    The table is the solution table (docs/data-format.md) with a ``sampler`` column added.
+    ``solver_options``: the problem's options object (e.g. :class:`~amorgs.solvers.options.IpoptOptions`; a
+    mapping or ``None`` is converted).  The table is the solution table (docs/data-format.md) with a ``sampler`` column added.
     """
     prob = get_problem(problem)
     guesses = sampler.sample(alpha, n, np.random.default_rng(seed))

@@ -1,41 +1,36 @@
 """Everything the ablation report needs from the cell tables, in one call (paper Sec. V.B.7–8).
 
-``summarize(cells, ground_truth_hq, beta_kg)`` returns metrics (flat dict of numbers, MLflow-ready), tables
-(Table 6, the capped study per α, hyperplane coverage per α) and figures (Figs. 21–23).  Pure: no file IO.
+``summarize(cells, ground_truth_hq, beta_kg)`` returns an :class:`~amorgs.ablation.summary.AblationSummary`:
+metrics (flat dict of numbers, MLflow-ready, keys from :func:`amorgs.alphas.metric_key`), tables (Table 6, the
+capped study per α, hyperplane coverage per α, the issue-11 statistics) and the data of Figs. 21–23, which
+:func:`amorgs.figures.ablation.ablation_figures` draws.  Pure: no file IO, no plotting.
+
+Metric keys: ``<name>/alpha_<label>[/<sampler>][/<qualifier>]``, e.g. ``percent_hq/alpha_0.150/amorgs``,
+``acceleration/alpha_0.150``, ``aRT_iterations/alpha_0.150/amorgs`` (IPOPT iterations per high-quality
+solution), ``rate_percent/alpha_0.150/amorgs/beta_435`` (at a swept β, kg),
+``itcap_percent/alpha_0.150/amorgs/cap_200`` (under a 200-iteration cap).
 """
 
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
 
 from amorgs.ablation.statistics import (
     anytime_curves,
     capped_study,
     expected_running_time,
+    high_quality,
     hyperplane_coverage,
     iteration_capped,
     rates,
     table6,
 )
+from amorgs.ablation.summary import AblationSummary
+from amorgs.alphas import alpha_value, metric_key, rows_at, rows_at_any
 from amorgs.analysis.hyperplanes import ModeParams, detect_modes, time_of_flight
-from amorgs.figures.ablation import (
-    ablation_anytime,
-    ablation_beta_sweep,
-    ablation_speedups,
-    fig21_solve_time_histograms,
-    fig22_capped_convergence,
-    fig22_iteration_capped,
-    fig23_amorgs_diversity,
-)
-
-
-def _key(text: str) -> str:
-    return re.sub(r"[^0-9A-Za-z_.-]", "_", text)
 
 
 def summarize(
@@ -48,69 +43,71 @@ def summarize(
     beta_sweep: tuple[float, ...] = (),
     iteration_caps: tuple[int, ...] = (),
     max_iter: int | None = None,
-) -> tuple[dict[str, float], dict[str, pd.DataFrame], dict[str, Figure]]:
-    """Table 6, Fig. 22 capped study + search acceleration (bootstrap CI), hyperplane coverage, Figs. 21–23;
-    and (issue 11) rates with Wilson intervals and Fisher tests, the β sweep, expected running time with
-    bootstrap speed-ups, the iteration-capped Fig. 22 and anytime curves.
+) -> AblationSummary:
+    """Table 6, Fig. 22 capped study + search acceleration (bootstrap CI), hyperplane coverage, the data of
+    Figs. 21–23; and (issue 11) rates with Wilson intervals and Fisher tests, the β sweep, expected running time
+    with bootstrap speed-ups, the iteration-capped Fig. 22 and anytime curves.
 
     ``cells``: concatenated ablation tables (column ``sampler``); ``ground_truth_hq``: the high-quality
     solution set (all α; rows at the test α are the ground truth of Fig. 23 and of the coverage count);
-    ``beta_sweep`` (kg, β itself added), ``iteration_caps`` (fixed in config before the solves; none:
-    the iteration-capped study is empty) and ``max_iter`` (the solver's cap, an upper bound for them).
+    ``beta_kg`` (kg); ``beta_sweep`` (kg, β itself added), ``iteration_caps`` (fixed in config before the
+    solves; none: the iteration-capped study is empty) and ``max_iter`` (the solver's cap, an upper bound for
+    them).  α are grouped by label (:mod:`amorgs.alphas`).
     """
     mode_params = mode_params or ModeParams()
+    cells = cells.assign(alpha=cells["alpha"].map(alpha_value))
     metrics: dict[str, float] = {}
     t6 = table6(cells, beta_kg)
     for row in t6.itertuples(index=False):
-        tag = f"a{row.alpha:.3f}_{row.sampler}"
-        metrics[f"percent_hq_{tag}"] = row.percent_high_quality
-        metrics[f"time_median_s_{tag}"] = row.time_median_s
-    capped_tables, coverage_tables = {}, {}
+        metrics[metric_key("percent_hq", row.alpha, row.sampler)] = row.percent_high_quality
+        metrics[metric_key("time_median_s", row.alpha, row.sampler)] = row.time_median_s
+    capped_tables, coverage_tables = [], []
     for alpha, g in cells.groupby("alpha"):
         capped, result = capped_study(g, beta_kg, n_boot=n_boot, seed=seed)
         capped.insert(0, "alpha", alpha)
-        capped_tables[alpha] = capped
-        tag = f"a{alpha:.3f}"
-        metrics[f"cap_s_{tag}"] = result["cap_s"]
-        metrics[f"acceleration_{tag}"] = result["acceleration"]
-        metrics[f"acceleration_ci95_low_{tag}"], metrics[f"acceleration_ci95_high_{tag}"] = result["acceleration_ci95"]
+        capped_tables.append(capped)
+        metrics[metric_key("cap_s", alpha)] = result["cap_s"]
+        metrics[metric_key("acceleration", alpha)] = result["acceleration"]
+        (metrics[metric_key("acceleration_ci95_low", alpha)],
+         metrics[metric_key("acceleration_ci95_high", alpha)]) = result["acceleration_ci95"]
         for r in capped.itertuples(index=False):
-            metrics[f"percent_within_cap_{tag}_{r.sampler}"] = r.percent_within_cap
-        truth = ground_truth_hq[np.isclose(ground_truth_hq["alpha"], alpha)]
+            metrics[metric_key("percent_within_cap", alpha, r.sampler)] = r.percent_within_cap
+        truth = rows_at(ground_truth_hq, alpha)
         modes = detect_modes(time_of_flight(truth), mode_params) if len(truth) else np.array([])
         cov = hyperplane_coverage(g, beta_kg, modes, mode_params.delta)
         cov.insert(0, "alpha", alpha)
-        coverage_tables[alpha] = cov
+        coverage_tables.append(cov)
         for r in cov.itertuples(index=False):
-            metrics[f"hyperplanes_reached_{tag}_{r.sampler}"] = r.hyperplanes_reached
-        metrics[f"hyperplanes_ground_truth_{tag}"] = float(len(modes))
+            metrics[metric_key("hyperplanes_reached", alpha, r.sampler)] = r.hyperplanes_reached
+        metrics[metric_key("hyperplanes_ground_truth", alpha)] = float(len(modes))
     betas = tuple(sorted({float(beta_kg), *map(float, beta_sweep)}))
     sweep = rates(cells, betas)
     ert = expected_running_time(cells, beta_kg, n_boot=n_boot, seed=seed)
     capped_it = iteration_capped(cells, beta_kg, iteration_caps, max_iter) if iteration_caps else pd.DataFrame()
     curves = anytime_curves(cells, beta_kg)
     for r in sweep.itertuples(index=False):
-        tag = f"a{r.alpha:.3f}_{r.sampler}" + ("" if r.beta_kg == beta_kg else f"_beta{r.beta_kg:g}")
-        metrics[f"rate_percent_{tag}"] = r.percent
-        metrics[f"rate_ci95_low_{tag}"], metrics[f"rate_ci95_high_{tag}"] = r.ci95_low, r.ci95_high
+        swept = () if r.beta_kg == beta_kg else (f"beta_{r.beta_kg:g}",)
+        metrics[metric_key("rate_percent", r.alpha, r.sampler, *swept)] = r.percent
+        metrics[metric_key("rate_ci95_low", r.alpha, r.sampler, *swept)] = r.ci95_low
+        metrics[metric_key("rate_ci95_high", r.alpha, r.sampler, *swept)] = r.ci95_high
         for col in ("p_gt_uniform", "p_gt_nearest_alpha"):
-            metrics[f"fisher_{col}_{tag}"] = getattr(r, col, math.nan)
+            metrics[metric_key(f"fisher_{col}", r.alpha, r.sampler, *swept)] = getattr(r, col, math.nan)
     for r in ert.itertuples(index=False):
-        tag = f"{r.unit}_a{r.alpha:.3f}_{r.sampler}"
-        metrics[f"aRT_{tag}"] = r.aRT
-        metrics[f"speedup_{tag}"] = r.speedup
-        metrics[f"speedup_ci95_low_{tag}"], metrics[f"speedup_ci95_high_{tag}"] = r.speedup_ci95_low, r.speedup_ci95_high
+        metrics[metric_key(f"aRT_{r.unit}", r.alpha, r.sampler)] = r.aRT
+        metrics[metric_key(f"speedup_{r.unit}", r.alpha, r.sampler)] = r.speedup
+        metrics[metric_key(f"speedup_ci95_low_{r.unit}", r.alpha, r.sampler)] = r.speedup_ci95_low
+        metrics[metric_key(f"speedup_ci95_high_{r.unit}", r.alpha, r.sampler)] = r.speedup_ci95_high
     for r in capped_it.itertuples(index=False):
-        tag = f"a{r.alpha:.3f}_cap{r.cap_iterations}_{r.sampler}"
-        metrics[f"itcap_percent_{tag}"] = r.percent_within_cap
-        metrics[f"itcap_percent_ratio_{tag}"] = getattr(r, "percent_ratio", math.nan)
-        metrics[f"itcap_throughput_ratio_{tag}"] = getattr(r, "throughput_ratio", math.nan)
+        cap = f"cap_{r.cap_iterations}"
+        metrics[metric_key("itcap_percent", r.alpha, r.sampler, cap)] = r.percent_within_cap
+        metrics[metric_key("itcap_percent_ratio", r.alpha, r.sampler, cap)] = getattr(r, "percent_ratio", math.nan)
+        metrics[metric_key("itcap_throughput_ratio", r.alpha, r.sampler, cap)] = getattr(r, "throughput_ratio",
+                                                                                        math.nan)
     if len(curves):
         last = curves.groupby(["alpha", "sampler"]).tail(1)
         for r in last.itertuples(index=False):
-            tag = f"a{r.alpha:.3f}_{r.sampler}"
-            metrics[f"best_m_f_{tag}"] = r.best_m_f
-            metrics[f"distinct_optima_{tag}"] = float(r.distinct_optima)
+            metrics[metric_key("best_m_f", r.alpha, r.sampler)] = r.best_m_f
+            metrics[metric_key("distinct_optima", r.alpha, r.sampler)] = float(r.distinct_optima)
     tables = {
         "rates": sweep[sweep["beta_kg"] == float(beta_kg)].reset_index(drop=True),
         "beta_sweep": sweep,
@@ -118,20 +115,14 @@ def summarize(
         "iteration_capped": capped_it,
         "anytime": curves,
         "table6": t6,
-        "capped": pd.concat(capped_tables.values(), ignore_index=True) if capped_tables else pd.DataFrame(),
-        "coverage": pd.concat(coverage_tables.values(), ignore_index=True) if coverage_tables else pd.DataFrame(),
+        "capped": pd.concat(capped_tables, ignore_index=True) if capped_tables else pd.DataFrame(),
+        "coverage": pd.concat(coverage_tables, ignore_index=True) if coverage_tables else pd.DataFrame(),
     }
-    figures = {
-        "fig21_solve_time_histograms": fig21_solve_time_histograms(cells, beta_kg),
-        "fig22_capped_convergence": fig22_capped_convergence(capped_tables),
-        "fig23_amorgs_diversity": fig23_amorgs_diversity(cells, ground_truth_hq, beta_kg),
-        "ablation_speedups": ablation_speedups(ert),
-        "ablation_beta_sweep": ablation_beta_sweep(sweep),
-        "ablation_anytime": ablation_anytime(curves),
-        "fig22_iteration_capped": fig22_iteration_capped(capped_it),
-    }
-    metrics = {_key(k): float(v) for k, v in metrics.items() if v is not None and not math.isnan(float(v))}
-    return metrics, tables, figures
+    metrics = {k: float(v) for k, v in metrics.items() if v is not None and not math.isnan(float(v))}
+    return AblationSummary(
+        metrics=metrics, tables=tables, solves=cells.assign(high_quality=high_quality(cells, beta_kg)),
+        ground_truth=rows_at_any(ground_truth_hq, cells["alpha"].unique()), beta_kg=float(beta_kg),
+    )
 
 
 def table6_markdown(t6: pd.DataFrame) -> str:

@@ -20,10 +20,10 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from amorgs.analysis.structure_params import INTERVALS
 from amorgs.problems.cr3bp.controls import thrust_vectors
 
 COMPONENTS = ("u_x", "u_y", "u_z")
-INTERVALS = ("mean_ci", "percentile")
 
 
 def n_segments(df: pd.DataFrame) -> int:

@@ -29,29 +29,7 @@ from sklearn.neighbors import NearestNeighbors, radius_neighbors_graph
 
 from amorgs.analysis.controls import thrust_components
 from amorgs.analysis.hyperplanes import TIME_COLUMNS
-
-FEATURE_SETS = ("times", "full")
-
-
-@dataclass(frozen=True)
-class DiversityParams:
-    """Diversity surrogate of Eq. 12.
-
-    eta: threshold η (dimensionless, in the scaled coordinates of ``features``); the default 0.02 is 0.8 TU of
-        τ_s or 0.3 TU of τ_i or τ_f — about the width 2δ of a hyperplane band.
-    features: ``"times"`` or ``"full"`` (module docstring).
-    time_scale: divisors of (τ_s, τ_i, τ_f) in TU — the decision-box upper bounds of spec §5.
-    """
-
-    eta: float = 0.02
-    features: str = "times"
-    time_scale: tuple[float, float, float] = (40.0, 15.0, 15.0)
-
-    def __post_init__(self) -> None:
-        if self.features not in FEATURE_SETS:
-            raise ValueError(f"DiversityParams.features must be one of {FEATURE_SETS}, got {self.features!r}")
-        if not self.eta > 0:
-            raise ValueError(f"DiversityParams.eta must be > 0, got {self.eta}")
+from amorgs.analysis.structure_params import FEATURE_SETS, DiversityParams  # noqa: F401  (re-exported)
 
 
 @dataclass

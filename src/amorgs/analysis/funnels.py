@@ -22,27 +22,7 @@ import numpy as np
 import pandas as pd
 from sklearn.mixture import GaussianMixture
 
-
-@dataclass(frozen=True)
-class FunnelParams:
-    """Gaussian-mixture funnel clustering.
-
-    max_funnels: largest number of mixture components tried.
-    min_per_funnel: fewest members of a funnel; fits with a smaller cluster are not admissible.
-    use_mass: add m_f to the in-plane coordinates as a clustering feature.
-    seed: random_state of the mixture fits.
-    n_init: initialisations per fit (best likelihood kept).
-    """
-
-    max_funnels: int = 4
-    min_per_funnel: int = 3
-    use_mass: bool = False
-    seed: int = 0
-    n_init: int = 5
-
-    def __post_init__(self) -> None:
-        if self.max_funnels < 1 or self.min_per_funnel < 1 or self.n_init < 1:
-            raise ValueError(f"FunnelParams needs max_funnels, min_per_funnel, n_init ≥ 1, got {self}")
+from amorgs.analysis.structure_params import FunnelParams  # noqa: F401  (re-exported)
 
 
 @dataclass

@@ -34,11 +34,12 @@ Membership follows Eq. 32 literally: |TOF − T| ≤ δ (a difference of TOFs, i
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 from scipy.signal import find_peaks
+
+from amorgs.analysis.structure_params import ModeParams  # noqa: F401  (re-exported)
 
 TIME_COLUMNS = ("tau_s", "tau_i", "tau_f")
 
@@ -50,35 +51,6 @@ FRAME = np.array(
         [1.0, 1.0, 1.0],
     ]
 ) / np.array([[math.sqrt(6.0)], [math.sqrt(2.0)], [math.sqrt(3.0)]])
-
-
-@dataclass(frozen=True)
-class ModeParams:
-    """Mode detection of the TOF density (all lengths in TU).
-
-    bandwidth: standard deviation of the Gaussian kernel.
-    grid_step: spacing of the grid the density is evaluated on.
-    min_prominence: peak prominence as a fraction of the largest density value.
-    min_separation: smallest distance between two reported modes.
-    min_members: fewest solutions within ``delta`` of a mode for it to count as a hyperplane.
-    delta: half-width of a hyperplane in TOF, Eq. 32 (paper: 0.25 TU).
-    """
-
-    bandwidth: float = 0.1
-    grid_step: float = 0.005
-    min_prominence: float = 0.02
-    min_separation: float = 1.0
-    min_members: int = 3
-    delta: float = 0.25
-
-    def __post_init__(self) -> None:
-        for key in ("bandwidth", "grid_step", "min_separation", "delta"):
-            if not getattr(self, key) > 0:
-                raise ValueError(f"ModeParams.{key} must be > 0, got {getattr(self, key)}")
-        if not 0 <= self.min_prominence < 1:
-            raise ValueError(f"ModeParams.min_prominence must be in [0, 1), got {self.min_prominence}")
-        if self.min_members < 1:
-            raise ValueError(f"ModeParams.min_members must be ≥ 1, got {self.min_members}")
 
 
 def time_coordinates(df: pd.DataFrame) -> np.ndarray:

@@ -16,7 +16,8 @@ Metrics of one sample set against its ground truth (:func:`prediction_metrics`):
   (its ceiling: true solutions between planes or on planes too sparse to count).
 - ``modes_covered``: true modes with at least one sample within δ.
 
-With no ground truth at an α every comparison is NaN (``n_truth`` = 0): nothing is made up.
+With no ground truth at an α every comparison is NaN (``n_truth`` = 0): nothing is made up.  Samples and
+truth are matched by α label (:func:`amorgs.alphas.rows_at`).
 """
 
 from __future__ import annotations
@@ -27,10 +28,9 @@ import numpy as np
 import pandas as pd
 from scipy.stats import wasserstein_distance
 
+from amorgs.alphas import alpha_value, rows_at
 from amorgs.analysis.hyperplanes import ModeParams, assign_hyperplane, detect_modes, time_of_flight
 
-#: α values of two tables are the same α when they agree within this (half the 3-decimal label step).
-ALPHA_ATOL = 5e-4
 METRICS = (
     "n_samples",
     "n_truth",
@@ -41,11 +41,6 @@ METRICS = (
     "truth_fraction_on_hyperplanes",
     "modes_covered",
 )
-
-
-def at_alpha(df: pd.DataFrame, alpha: float) -> pd.DataFrame:
-    """Rows of ``df`` whose ``alpha`` equals ``alpha`` within :data:`ALPHA_ATOL`."""
-    return df[np.isclose(df["alpha"].to_numpy(dtype=float), alpha, rtol=0.0, atol=ALPHA_ATOL)]
 
 
 def _finite(values: np.ndarray) -> np.ndarray:
@@ -79,7 +74,8 @@ def prediction_table(
     by: Sequence[str] = ("alpha",),
 ) -> pd.DataFrame:
     """:func:`prediction_metrics` for every group of ``samples`` by the columns ``by`` (which include
-    ``alpha``; e.g. ``("alpha", "data_fraction")``), each against the truth rows at the group's α.
+    ``alpha``; e.g. ``("alpha", "data_fraction")``), each against the truth rows at the group's α.  α are
+    grouped by label; the ``alpha`` column holds :func:`amorgs.alphas.alpha_value`.
 
     One row per group: the ``by`` columns, then :data:`METRICS`; sorted by the group keys.
     """
@@ -87,7 +83,7 @@ def prediction_table(
     if "alpha" not in by:
         raise ValueError(f"prediction_table: 'by' must include 'alpha', got {by}")
     rows = []
-    for keys, group in samples.groupby(by, sort=True):
+    for keys, group in samples.assign(alpha=samples["alpha"].map(alpha_value)).groupby(by, sort=True):
         key = dict(zip(by, keys if isinstance(keys, tuple) else (keys,)))
-        rows.append(key | prediction_metrics(group, at_alpha(truth, float(key["alpha"])), params))
+        rows.append(key | prediction_metrics(group, rows_at(truth, key["alpha"]), params))
     return pd.DataFrame(rows, columns=[*by, *METRICS])

@@ -14,32 +14,17 @@ backward from ``manifold_departure_state`` — and shown in forward time.  Posit
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pandas as pd
 from scipy.integrate import solve_ivp
 
 from amorgs.analysis.hyperplanes import time_of_flight
+from amorgs.analysis.structure_result import TransferPath
 from amorgs.problems.cr3bp.dynamics import ballistic_rhs
 from amorgs.problems.cr3bp.propagation import propagate
 from amorgs.problems.cr3bp.transcription import variable_names
 
 REFERENCE_RTOL = 1e-11
-
-
-@dataclass
-class TransferPath:
-    """One solution's trajectory for plotting: ``label``, ``tof`` (TU), ``m_f`` (kg), ``alpha`` (N),
-    ``t`` (TU, shape (n,)) and ``positions`` (3, n) in DU, plus the solution's ``row`` index."""
-
-    label: str
-    tof: float
-    m_f: float
-    alpha: float
-    t: np.ndarray
-    positions: np.ndarray
-    row: int
 
 
 def select_across_hyperplanes(plane_rows: pd.DataFrame, k: int) -> list:

@@ -1,18 +1,22 @@
-"""Figures of the warm-start ablation (paper Figs. 21–23): data in, matplotlib Figure out, no file IO."""
+"""Figures of the warm-start ablation (paper Figs. 21–23 and the issue-11 measures): data in, matplotlib Figure
+out — object API (no pyplot state, no backend), no file IO, no statistics beyond drawing a density.
+
+The data come from :func:`amorgs.ablation.report.summarize` (an :class:`~amorgs.ablation.summary.AblationSummary`):
+``solves`` are the cell tables with a boolean ``high_quality`` column (converged and m_f ≥ β), the other tables
+are its statistics.  Times in CPU seconds, masses in kg, times of flight in TU.  :func:`ablation_figures` draws
+them all.
+"""
 
 from __future__ import annotations
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 from scipy.stats import gaussian_kde
 
-from amorgs.ablation.statistics import high_quality
 from amorgs.ablation.arms import SAMPLER_LABELS, SAMPLER_NAMES
+from amorgs.ablation.summary import AblationSummary
+from amorgs.alphas import distinct_alphas, rows_at
 
 
 def _samplers(df: pd.DataFrame) -> list[str]:
@@ -20,17 +24,21 @@ def _samplers(df: pd.DataFrame) -> list[str]:
     return [s for s in SAMPLER_NAMES if s in present] + sorted(present - set(SAMPLER_NAMES))
 
 
-def fig21_solve_time_histograms(df: pd.DataFrame, beta_kg: float) -> Figure:
-    """Histogram + KDE of the solve time (CPU s) of high-quality solves, per α (rows) and sampler (cols)."""
-    alphas = sorted(df["alpha"].unique())
-    samplers = _samplers(df)
-    fig, axes = plt.subplots(len(alphas), len(samplers), figsize=(3.2 * len(samplers), 2.6 * len(alphas)),
-                             squeeze=False, sharex="row")
+def fig21_solve_time_histograms(solves: pd.DataFrame, beta_kg: float) -> Figure:
+    """Histogram + KDE of the solve time (CPU s) of high-quality solves, per α (rows) and sampler (cols).
+
+    ``solves``: cell rows with ``alpha``, ``sampler``, ``cpu_s`` and the boolean ``high_quality``; ``beta_kg``
+    (kg) only labels the figure."""
+    alphas = distinct_alphas(solves["alpha"])
+    samplers = _samplers(solves)
+    fig = Figure(figsize=(3.2 * len(samplers), 2.6 * len(alphas)), layout="tight")
+    axes = fig.subplots(len(alphas), len(samplers), squeeze=False, sharex="row")
     for i, alpha in enumerate(alphas):
+        this_alpha = rows_at(solves, alpha)
         for j, sampler in enumerate(samplers):
             ax = axes[i, j]
-            g = df[(df["alpha"] == alpha) & (df["sampler"] == sampler)]
-            t = g.loc[high_quality(g, beta_kg), "cpu_s"].to_numpy()
+            g = this_alpha[this_alpha["sampler"] == sampler]
+            t = g.loc[g["high_quality"].astype(bool), "cpu_s"].to_numpy()
             if t.size:
                 ax.hist(t, bins=min(20, max(5, t.size // 2)), density=True, alpha=0.5, color=f"C{j}")
                 if t.size >= 3 and np.ptp(t) > 0:
@@ -38,42 +46,54 @@ def fig21_solve_time_histograms(df: pd.DataFrame, beta_kg: float) -> Figure:
                     ax.plot(grid, gaussian_kde(t)(grid), color=f"C{j}")
             else:
                 ax.text(0.5, 0.5, "no high-quality solve", ha="center", va="center", transform=ax.transAxes)
-            ax.set_title(f"{SAMPLER_LABELS.get(sampler, sampler)}\nα = {alpha:g}, n_HQ = {t.size}/{len(g)}", fontsize=8)
+            ax.set_title(f"{SAMPLER_LABELS.get(sampler, sampler)}\nα = {alpha:g}, n_HQ = {t.size}/{len(g)}",
+                         fontsize=8)
             ax.set_xlabel("solve time (CPU s)")
     fig.suptitle(f"Fig. 21 — solve time of starts converging into A(α, β = {beta_kg:g} kg)")
-    fig.tight_layout()
     return fig
 
 
-def fig22_capped_convergence(capped: dict[float, pd.DataFrame]) -> Figure:
-    """% of starts converging into the high-quality set within the per-solve cap, per sampler and α."""
-    fig, axes = plt.subplots(1, len(capped), figsize=(5 * len(capped), 3.8), squeeze=False)
-    for ax, (alpha, table) in zip(axes[0], sorted(capped.items())):
-        order = [s for s in _samplers(table)]
+def fig22_capped_convergence(capped: pd.DataFrame) -> Figure:
+    """% of starts converging into the high-quality set within the per-solve cap, per sampler and α.
+
+    ``capped``: the capped study (:func:`amorgs.ablation.statistics.capped_study`) of every α, column ``alpha``."""
+    alphas = distinct_alphas(capped["alpha"]) if len(capped) else []
+    fig = Figure(figsize=(5 * max(len(alphas), 1), 3.8), layout="tight")
+    axes = fig.subplots(1, max(len(alphas), 1), squeeze=False)
+    if not alphas:
+        axes[0, 0].text(0.5, 0.5, "no ablation cells", ha="center", va="center", transform=axes[0, 0].transAxes)
+    for ax, alpha in zip(axes[0], alphas):
+        table = rows_at(capped, alpha)
+        order = _samplers(table)
         t = table.set_index("sampler").loc[order]
         ax.bar(range(len(t)), t["percent_within_cap"], color=[f"C{i}" for i in range(len(t))])
         ax.set_xticks(range(len(t)), [SAMPLER_LABELS.get(s, s) for s in t.index], rotation=30, ha="right", fontsize=8)
         ax.set_ylabel("% converged within cap")
         ax.set_title(f"α = {alpha:g}, cap = {t['cap_s'].iloc[0]:.1f} CPU s, n = {int(t['n'].iloc[0])}")
     fig.suptitle("Fig. 22 — convergence under a per-solve time cap (AmorGS median solve time)")
-    fig.tight_layout()
     return fig
 
 
-def fig23_amorgs_diversity(ablation: pd.DataFrame, ground_truth: pd.DataFrame, beta_kg: float,
+def fig23_amorgs_diversity(solves: pd.DataFrame, ground_truth: pd.DataFrame, beta_kg: float,
                            sampler: str = "amorgs") -> Figure:
     """Per test α: the sampler's guesses, their high-quality solutions, and the ground-truth HQ set,
-    in (τ_s, TOF) coordinates coloured by m_f."""
-    alphas = sorted(ablation["alpha"].unique())
-    fig, axes = plt.subplots(len(alphas), 3, figsize=(13, 3.6 * len(alphas)), squeeze=False, sharey="row")
+    in (τ_s, TOF) coordinates (TU) coloured by m_f (kg).
+
+    ``solves``: cell rows with ``guess_*`` and solution columns and the boolean ``high_quality``;
+    ``ground_truth``: the high-quality solution set (rows at other α are ignored); ``beta_kg`` labels panels."""
+    alphas = distinct_alphas(solves["alpha"])
+    fig = Figure(figsize=(13, 3.6 * len(alphas)), layout="tight")
+    axes = fig.subplots(len(alphas), 3, squeeze=False, sharey="row")
     for i, alpha in enumerate(alphas):
-        g = ablation[(ablation["alpha"] == alpha) & (ablation["sampler"] == sampler)]
-        sol = g[high_quality(g, beta_kg)]
-        gt = ground_truth[np.isclose(ground_truth["alpha"], alpha)]
+        this_alpha = rows_at(solves, alpha)
+        g = this_alpha[this_alpha["sampler"] == sampler]
+        sol = g[g["high_quality"].astype(bool)]
+        gt = rows_at(ground_truth, alpha)
         panels = [
             ("samples", g["guess_tau_s"], g["guess_tau_s"] + g["guess_tau_i"] + g["guess_tau_f"], g["guess_m_f"]),
             ("solved (high quality)", sol["tau_s"], sol["tau_s"] + sol["tau_i"] + sol["tau_f"], sol["m_f"]),
-            ("ground truth A(α, β)", gt["tau_s"], gt["tau_s"] + gt["tau_i"] + gt["tau_f"], gt["m_f"]),
+            (f"ground truth A(α, β = {beta_kg:g} kg)", gt["tau_s"], gt["tau_s"] + gt["tau_i"] + gt["tau_f"],
+             gt["m_f"]),
         ]
         for ax, (title, x, y, c) in zip(axes[i], panels):
             if len(x):
@@ -85,7 +105,6 @@ def fig23_amorgs_diversity(ablation: pd.DataFrame, ground_truth: pd.DataFrame, b
             ax.set_xlabel("τ_s (TU)")
         axes[i, 0].set_ylabel("TOF (TU)")
     fig.suptitle(f"Fig. 23 — {SAMPLER_LABELS.get(sampler, sampler)} samples, their solutions and the ground truth")
-    fig.tight_layout()
     return fig
 
 
@@ -103,13 +122,15 @@ def _colour(s: str) -> str:
 def ablation_speedups(ert: pd.DataFrame) -> Figure:
     """Speed-up aRT_uniform ÷ aRT_arm (bootstrap 95 % interval), per α (columns) and unit (rows: iterations,
     CPU s); log scale, ∞ drawn as an arrow at the top."""
-    alphas = sorted(ert["alpha"].unique())
+    alphas = distinct_alphas(ert["alpha"])
     units = [u for u in ("iterations", "cpu_s") if u in set(ert["unit"])]
-    fig, axes = plt.subplots(len(units), len(alphas), figsize=(5 * len(alphas), 3.6 * len(units)), squeeze=False)
+    fig = Figure(figsize=(5 * len(alphas), 3.6 * len(units)), layout="tight")
+    axes = fig.subplots(len(units), len(alphas), squeeze=False)
     for i, unit in enumerate(units):
         for j, alpha in enumerate(alphas):
             ax = axes[i, j]
-            t = ert[(ert["alpha"] == alpha) & (ert["unit"] == unit)].set_index("sampler")
+            this_alpha = rows_at(ert, alpha)
+            t = this_alpha[this_alpha["unit"] == unit].set_index("sampler")
             order = _samplers(t.reset_index())
             finite = t["speedup"].replace([np.inf, -np.inf], np.nan)
             top = float(np.nanmax([finite.max(), t["speedup_ci95_high"].replace(np.inf, np.nan).max(), 1.0]) * 2)
@@ -129,7 +150,6 @@ def ablation_speedups(ert: pd.DataFrame) -> Figure:
             ax.set_ylabel(f"speed-up vs uniform ({'IPOPT iterations' if unit == 'iterations' else 'CPU s'})")
             ax.set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
     fig.suptitle("Expected running time per high-quality solution: aRT(uniform) ÷ aRT(arm), bootstrap 95 % CI")
-    fig.tight_layout()
     return fig
 
 
@@ -137,14 +157,16 @@ def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
     """Fig. 22 done with a fixed iteration cap: per α (columns), the paper's ratio of percentages (top) and
     the throughput ratio (bottom), arm ÷ uniform, as a function of the cap."""
     if capped.empty:
-        fig, ax = plt.subplots(figsize=(5, 3))
+        fig = Figure(figsize=(5, 3))
+        ax = fig.subplots()
         ax.text(0.5, 0.5, "no iteration caps configured (ablation.iteration_caps)", ha="center", va="center")
         ax.set_axis_off()
         return fig
-    alphas = sorted(capped["alpha"].unique())
-    fig, axes = plt.subplots(2, len(alphas), figsize=(5 * len(alphas), 7), squeeze=False, sharex=True)
+    alphas = distinct_alphas(capped["alpha"])
+    fig = Figure(figsize=(5 * len(alphas), 7), layout="tight")
+    axes = fig.subplots(2, len(alphas), squeeze=False, sharex=True)
     for j, alpha in enumerate(alphas):
-        t = capped[capped["alpha"] == alpha]
+        t = rows_at(capped, alpha)
         for s in _samplers(t):
             g = t[t["sampler"] == s].sort_values("cap_iterations")
             for i, col in enumerate(("percent_ratio", "throughput_ratio")):
@@ -162,17 +184,17 @@ def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
             ax.set_xlim(caps.min() / 1.3, caps.max() * 1.3)
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("Fig. 22 (iteration cap) — ratio of percentages and throughput ratio vs the cap (∞ not drawn)")
-    fig.tight_layout()
     return fig
 
 
 def ablation_anytime(curves: pd.DataFrame) -> Figure:
     """Anytime curves per α (rows): best m_f vs cumulative CPU s and vs cumulative iterations, and the
     number of η-distinct high-quality optima vs cumulative CPU s."""
-    alphas = sorted(curves["alpha"].unique())
-    fig, axes = plt.subplots(len(alphas), 3, figsize=(15, 3.8 * len(alphas)), squeeze=False)
+    alphas = distinct_alphas(curves["alpha"])
+    fig = Figure(figsize=(15, 3.8 * len(alphas)), layout="tight")
+    axes = fig.subplots(len(alphas), 3, squeeze=False)
     for i, alpha in enumerate(alphas):
-        t = curves[curves["alpha"] == alpha]
+        t = rows_at(curves, alpha)
         for s in _samplers(t):
             g = t[t["sampler"] == s]
             kw = {"color": _colour(s), "label": _label(s), "where": "post"}
@@ -186,16 +208,16 @@ def ablation_anytime(curves: pd.DataFrame) -> Figure:
             ax.set_title(f"α = {alpha:g}", fontsize=9)
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("Anytime performance of each arm (starts in order)")
-    fig.tight_layout()
     return fig
 
 
 def ablation_beta_sweep(sweep: pd.DataFrame) -> Figure:
     """High-quality rate (%) vs β with Wilson 95 % intervals, per α (columns) and arm."""
-    alphas = sorted(sweep["alpha"].unique())
-    fig, axes = plt.subplots(1, len(alphas), figsize=(5 * len(alphas), 3.8), squeeze=False)
+    alphas = distinct_alphas(sweep["alpha"])
+    fig = Figure(figsize=(5 * len(alphas), 3.8), layout="tight")
+    axes = fig.subplots(1, len(alphas), squeeze=False)
     for ax, alpha in zip(axes[0], alphas):
-        t = sweep[sweep["alpha"] == alpha]
+        t = rows_at(sweep, alpha)
         samplers = _samplers(t)
         for k, s in enumerate(samplers):
             g = t[t["sampler"] == s].sort_values("beta_kg")
@@ -207,5 +229,18 @@ def ablation_beta_sweep(sweep: pd.DataFrame) -> Figure:
         ax.set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
     axes[0, 0].legend(fontsize=7)
     fig.suptitle("High-quality rate vs the quality threshold β (Wilson 95 % intervals)")
-    fig.tight_layout()
     return fig
+
+
+def ablation_figures(summary: AblationSummary) -> dict[str, Figure]:
+    """Every ablation figure of one report, by name (the names of :data:`amorgs.layout.ABLATION_FIGURES`)."""
+    solves, tables, beta_kg = summary.solves, summary.tables, summary.beta_kg
+    return {
+        "fig21_solve_time_histograms": fig21_solve_time_histograms(solves, beta_kg),
+        "fig22_capped_convergence": fig22_capped_convergence(tables["capped"]),
+        "fig23_amorgs_diversity": fig23_amorgs_diversity(solves, summary.ground_truth, beta_kg),
+        "fig22_iteration_capped": fig22_iteration_capped(tables["iteration_capped"]),
+        "ablation_speedups": ablation_speedups(tables["ert"]),
+        "ablation_beta_sweep": ablation_beta_sweep(tables["beta_sweep"]),
+        "ablation_anytime": ablation_anytime(tables["anytime"]),
+    }

@@ -7,19 +7,14 @@ from __future__ import annotations
 
 import math
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
+from amorgs.alphas import rows_at_any
 from amorgs.problems.dejong import DeJong5, dejong5, foxholes_25, true_minima
-
-#: α values in a table are matched to requested α within half the 3-decimal label resolution.
-_ALPHA_ATOL = 5e-4
 
 
 def _grid(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -61,7 +56,7 @@ def fig16_dejong_predictions(
 ) -> Figure:
     """Fig. 16: (a) training minima for several α, (b) CVAE samples at unseen α with the true minima.
 
-    ``train_df`` has columns ``alpha``, ``x1``, ``x2`` (the high-quality solution table); rows whose α
+    ``train_df`` has columns ``alpha``, ``x1``, ``x2`` (the high-quality solution table); rows whose α label
     matches one of ``train_alphas`` are drawn in (a), coloured by α.  ``samples_by_alpha`` maps each test α
     to its samples (n, 2), drawn in (b) one panel per α (paper: 1000 samples at π/9, 2π/9, π/3, 4π/9) with
     the eight analytic minima R(α)A overlaid.
@@ -69,9 +64,7 @@ def fig16_dejong_predictions(
     fig = plt.figure(figsize=(15, 7), layout="constrained")
     left, right = fig.subfigures(1, 2, width_ratios=[1.0, 1.15])
     ax = left.subplots()
-    alphas = np.asarray(train_alphas, dtype=float)
-    keep = np.isclose(train_df["alpha"].to_numpy()[:, None], alphas[None, :], atol=_ALPHA_ATOL).any(axis=1)
-    shown = train_df[keep]
+    shown = rows_at_any(train_df, train_alphas)
     sc = ax.scatter(shown["x1"], shown["x2"], c=shown["alpha"], cmap="viridis", s=10, vmin=0.0, vmax=math.pi / 2)
     left.colorbar(sc, ax=ax, label="α (rad)", shrink=0.8)
     _square(ax)

@@ -10,18 +10,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-import matplotlib
-
-matplotlib.use("Agg")
 import mpl_toolkits.mplot3d  # noqa: F401  (registers the "3d" projection)
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 from scipy.stats import gaussian_kde
 
+from amorgs.alphas import rows_at
 from amorgs.analysis.controls import COMPONENTS, segment_statistics, thrust_components
 from amorgs.analysis.hyperplanes import TIME_COLUMNS, time_of_flight
-from amorgs.analysis.prediction import at_alpha
 
 SAMPLE_COLOR = "C0"  # blue, as in the paper
 TRUTH_COLOR = "C1"  # orange
@@ -88,7 +85,7 @@ def fig17_time_predictions(samples: pd.DataFrame, truth: pd.DataFrame, alphas: S
     ncols = max(len(alphas), 1)
     fig = Figure(figsize=(5.0 * ncols, 12.0), layout="constrained")
     for j, alpha in enumerate(alphas):
-        s, t = at_alpha(samples, alpha), at_alpha(truth, alpha)
+        s, t = rows_at(samples, alpha), rows_at(truth, alpha)
         limits = _time_limits(s, t)
         _time_scatter(fig.add_subplot(3, ncols, j + 1, projection="3d"), s, SAMPLE_COLOR,
                       f"α = {alpha:g}: samples (n = {len(s)})", f"no samples at α = {alpha:g}", limits)
@@ -125,8 +122,8 @@ def fig18_data_fraction(samples_by_fraction: Mapping[float, pd.DataFrame], truth
     ncols, nrows = len(fractions) + 1, max(len(alphas), 1)
     fig = Figure(figsize=(4.2 * ncols, 4.0 * nrows), layout="constrained")
     for i, alpha in enumerate(alphas):
-        t = at_alpha(truth, alpha)
-        per = {f: at_alpha(samples_by_fraction[f], alpha) for f in fractions}
+        t = rows_at(truth, alpha)
+        per = {f: rows_at(samples_by_fraction[f], alpha) for f in fractions}
         limits = _time_limits(t, *per.values())
         for j, f in enumerate(fractions):
             ax = fig.add_subplot(nrows, ncols, i * ncols + j + 1, projection="3d")
@@ -172,8 +169,8 @@ def fig19_final_mass(samples: pd.DataFrame, truth: pd.DataFrame, alphas: Sequenc
     fig = Figure(figsize=(5.0 * ncols, 3.8), layout="constrained")
     axes = fig.subplots(1, ncols, squeeze=False)[0]
     for ax, alpha in zip(axes, alphas):
-        s = at_alpha(samples, alpha)["m_f"].to_numpy(dtype=float)
-        t = at_alpha(truth, alpha)["m_f"].to_numpy(dtype=float)
+        s = rows_at(samples, alpha)["m_f"].to_numpy(dtype=float)
+        t = rows_at(truth, alpha)["m_f"].to_numpy(dtype=float)
         s, t = _finite(s), _finite(t)
         edges = _bins([s, t], bin_width)
         if s.size:
@@ -208,7 +205,7 @@ def fig20_control_statistics(sources: Mapping[str, pd.DataFrame], alphas: Sequen
     for j, alpha in enumerate(alphas):
         missing = []
         for k, (label, df) in enumerate(sources.items()):
-            rows = at_alpha(df, alpha)
+            rows = rows_at(df, alpha)
             if not len(rows):
                 missing.append(label)
                 continue

@@ -2,10 +2,11 @@
 
 One function per paper figure: data in, :class:`matplotlib.figure.Figure` out — built on the object API
 (no pyplot state, no backend, no file IO), so the caller decides where it is saved or logged.  The data are
-computed by :mod:`amorgs.analysis.structure_report`; these functions only draw.  Where there is too little
-data for a panel (an empty hyperplane, three points that cannot be triangulated) the panel says so in words
-instead of failing; nothing is ever filled in.  Units: times TU, final mass m_f kg (fuel at the terminal
-state), positions DU in the Earth–Moon rotating frame.
+computed by :func:`amorgs.analysis.structure_report.analyze`; :func:`structure_figures` draws all of them
+from its :class:`~amorgs.analysis.structure_result.StructureResult`, and these functions only draw.  Where
+there is too little data for a panel (an empty hyperplane, three points that cannot be triangulated) the
+panel says so in words instead of failing; nothing is ever filled in.  Units: times TU, final mass m_f kg
+(fuel at the terminal state), positions DU in the Earth–Moon rotating frame.
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
+from amorgs.alphas import alpha_mask, rows_at, rows_at_any
 from amorgs.analysis.controls import COMPONENTS
-from amorgs.analysis.trajectories import TransferPath
+from amorgs.analysis.structure_result import StructureResult, TransferPath
 
 MASS_CMAP = "viridis"
 MASS_LABEL = "$m_f$ [kg]"
@@ -67,7 +69,7 @@ def fig03_time_hyperplanes(converged: pd.DataFrame, alphas: Sequence[float]) -> 
     ax = fig.add_subplot(projection="3d")
     colors = _alpha_colors(alphas)
     for a in sorted(alphas):
-        d = converged[np.isclose(converged["alpha"], a)]
+        d = rows_at(converged, a)
         ax.scatter(d["tau_s"], d["tau_i"], d["tau_f"], s=6, color=colors[a], label=f"α = {a:g} ({len(d)})",
                    depthshade=False)
     # Viewed along (−1, −1, 2), which is perpendicular to the common normal (1, 1, 1): planes appear edge-on.
@@ -98,7 +100,7 @@ def fig04_tof_histograms(converged: pd.DataFrame, modes: dict[float, np.ndarray]
     if len(tof):
         edges = np.arange(np.floor(tof.min()), np.ceil(tof.max()) + bin_width, bin_width)
     for a in alphas:
-        sel = np.isclose(converged["alpha"].to_numpy(), a)
+        sel = alpha_mask(converged["alpha"], a)
         ax_h.hist(tof[sel], bins=edges, histtype="step", color=colors[a],
                   label=f"α = {a:g}: {len(modes[a])} modes")
         for T in modes[a]:
@@ -358,3 +360,42 @@ def fig13_control_statistics(stats: pd.DataFrame, interval_label: str) -> Figure
         _note(axes[0, 0], "no funnels to summarise")
     fig.suptitle(f"Thrust components per segment: mean and {interval_label}")
     return fig
+
+
+def structure_figures(result: StructureResult) -> dict[str, Figure]:
+    """Figs. 3–13 of one structure analysis, by name (``fig03_time_hyperplanes`` … ``fig13_control_statistics``,
+    the names of :data:`amorgs.layout.ANALYSIS_FIGURES`)."""
+    params = result.params
+    shown = result.shown_alphas
+    on_shown = rows_at_any(result.converged, shown)
+    focus = result.focus_alpha
+    focus_value = focus if focus is not None else math.nan
+    fconv = result.focus_converged
+    tof, m_f = fconv["tof"].to_numpy(dtype=float), fconv["m_f"].to_numpy(dtype=float)
+    ma = result.tables["moving_average"]
+    ma_macro, ma_micro = (ma[ma["scale"] == scale] for scale in ("macro", "micro"))
+    funnel_planes = [*result.funnel_planes, (None, None), (None, None)][:2]
+    interval_label = ("95 % confidence interval of the mean" if params.control_interval == "mean_ci"
+                      else "2.5–97.5 % percentile band")
+    return {
+        "fig03_time_hyperplanes": fig03_time_hyperplanes(on_shown, shown),
+        "fig04_tof_histograms": fig04_tof_histograms(on_shown, {a: result.modes[a] for a in shown},
+                                                     params.histogram_bin),
+        "fig05_hyperplane_filtering": fig05_hyperplane_filtering([
+            (f"(a) converged, α = {focus_value:g}" if focus is not None else "(a) converged, α = –", fconv),
+            (f"(b) β-filtered, m_f ≥ {result.beta_kg:g} kg", result.focus_high_quality),
+            (f"(c) within δ = {params.modes.delta:g} TU of a mode, projected", result.near_plane),
+        ]),
+        "fig06_inplane_mass_contours": fig06_inplane_mass_contours(result.near_plane, result.fig06_planes,
+                                                                   params.contour_levels),
+        "fig07_moving_average_macro": fig07_moving_average_macro(tof, m_f, ma_macro, focus_value),
+        "fig08_moving_average_micro": fig08_moving_average_micro(tof, m_f, ma_micro, focus_value,
+                                                                 result.micro_center, params.micro_half_width),
+        "fig09_trajectories_across_hyperplanes": fig09_trajectories_across_hyperplanes(
+            result.paths_across, result.reference_arcs, result.boundary),
+        "fig10_trajectories_within_hyperplane": fig10_trajectories_within_hyperplane(
+            result.paths_within, result.reference_arcs, result.boundary, funnel_planes[0][1]),
+        "fig11_funnels": fig11_funnels(*funnel_planes[0], params.contour_levels),
+        "fig12_funnels": fig12_funnels(*funnel_planes[1], params.contour_levels),
+        "fig13_control_statistics": fig13_control_statistics(result.tables["control_statistics"], interval_label),
+    }

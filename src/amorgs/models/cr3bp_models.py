@@ -47,7 +47,7 @@ from amorgs.models.lstm import ControlLSTM, LSTMConfig, cartesian_controls, sphe
 from amorgs.models.training import TrainConfig, train
 from amorgs.problems.cr3bp.transcription import N_SEGMENTS, variable_names
 
-PRESETS = ("paper", "small")
+from amorgs.models.names import CR3BP_PRESETS as PRESETS  # noqa: E402  (the one registry of presets)
 TIME_MASS_COLUMNS = ("tau_s", "tau_i", "tau_f", "m_f")
 #: Latent size of the GMM-prior CVAE and its number of mixture components K (paper Sec. V.B.2).
 GMM_LATENT_DIM = 4

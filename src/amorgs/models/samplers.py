@@ -43,13 +43,15 @@ from amorgs.ablation.arms import (  # noqa: F401  (re-exported)
     SAMPLER_LABELS,
     SAMPLER_NAMES,
 )
+from amorgs.alphas import alpha_label, same_alpha
 from amorgs.models import cvae, lstm
 from amorgs.models.cr3bp_models import lstm_conditioning, stored_from_vanilla
+from amorgs.models.names import CR3BP_MODELS
 from amorgs.problems import Problem
 from amorgs.problems.base import check_alpha
 
 #: Model name → checkpoint file name inside a models directory (written by the train step).
-CHECKPOINTS = {"cvae_gmm": "cvae_gmm.pt", "vanilla_cvae": "vanilla_cvae.pt", "lstm": "lstm.pt"}
+CHECKPOINTS = {name: f"{name}.pt" for name in CR3BP_MODELS}
 
 
 class Sampler(Protocol):
@@ -161,8 +163,6 @@ class AmorGSSampler:
 
 def _training_rows(high_quality: pd.DataFrame, train_alphas, names) -> dict[float, np.ndarray]:
     """Training α → the decision vectors (m, 3N+4) of its high-quality rows; α without rows are left out."""
-    from amorgs.config import alpha_label
-
     if high_quality is None or not len(high_quality):
         raise ValueError("the high-quality table is empty: the nearest-α / GMM baselines need training solutions")
     wanted = {alpha_label(a): float(a) for a in train_alphas}
@@ -179,9 +179,7 @@ def _training_rows(high_quality: pd.DataFrame, train_alphas, names) -> dict[floa
 
 def _usable(by_alpha: dict[float, np.ndarray], alpha: float) -> list[float]:
     """The training α available at query ``alpha`` (any α sharing its three-decimal label excluded), sorted."""
-    from amorgs.config import alpha_label
-
-    keep = [a for a in sorted(by_alpha) if alpha_label(a) != alpha_label(alpha)]
+    keep = [a for a in sorted(by_alpha) if not same_alpha(a, alpha)]
     if not keep:
         raise ValueError(f"no training α other than the queried α = {alpha!r}")
     return keep

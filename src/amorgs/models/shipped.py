@@ -14,7 +14,6 @@ SHA-256 differs from the manifest.
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as _dt
 import json
 import shutil
@@ -51,7 +50,7 @@ def export_models(models_dir: str | Path, dest: str | Path, config_file: str | P
         "files": files,
         "config_file": str(config_file),
         "config_hash": cfg.hash,
-        "cr3bp_models": dataclasses.asdict(cfg.cr3bp_models),
+        "cr3bp_models": cfg.cr3bp_models.model_dump(mode="json"),
         "train_alphas": list(cfg.problems.cr3bp.alphas.train_values()),
         "library_manifest_sha256": sha256_file(library_path) if library is not None else None,
         "library_rows": library["totals"]["rows"] if library is not None else 0,

@@ -3,8 +3,9 @@
 A *problem* is a family of NLPs indexed by a scalar parameter α.  It knows its decision-vector layout
 (``variable_names``), its box bounds, how to draw uniform initial guesses, how to validate inputs and how
 to build a *local solver* — an object holding compiled functions that must be created inside the process
-that uses it (CasADi objects do not pickle).  Everything that crosses a process boundary is plain data:
-problem names, option dicts, numpy arrays and :class:`SolveRecord`.
+that uses it (CasADi objects do not pickle) — from its solver's typed options (``options_type``, one of the
+classes of :mod:`amorgs.solvers.options`).  Everything that crosses a process boundary is plain data:
+problem names, options objects, numpy arrays and :class:`SolveRecord`.
 """
 
 from __future__ import annotations
@@ -64,6 +65,9 @@ class Problem(Protocol):
     lower: np.ndarray
     upper: np.ndarray
     alpha_range: tuple[float, float]
+    #: The options class its local solver takes (e.g. :class:`~amorgs.solvers.options.IpoptOptions`).
+    #: Optional for a user-defined ``"module:Class"`` family: without it the solver gets the caller's mapping.
+    options_type: type
 
     def sample_uniform(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray: ...
 
@@ -71,7 +75,9 @@ class Problem(Protocol):
         """Validate one decision vector (length, finite, bounds); ``ValueError`` names the field."""
         ...
 
-    def make_local_solver(self, options: dict | None = None) -> LocalSolver: ...
+    def make_local_solver(self, options=None) -> LocalSolver:
+        """A local solver with ``options`` (an ``options_type`` instance; a mapping or ``None`` is converted)."""
+        ...
 
 
 def check_alpha(alpha: float, alpha_range: tuple[float, float], problem: str) -> float:

@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from collections.abc import Mapping
 
 import numpy as np
 from scipy.optimize import minimize
 
 from amorgs.problems import ALPHA_RANGES
 from amorgs.problems.base import SolveRecord, check_alpha, check_vector
+from amorgs.solvers.options import BfgsOptions, as_options
 
 #: Eq. 38: eight holes in two clusters of four (columns are (x₁, x₂) at α = 0).
 A_PAPER = np.array(
@@ -83,28 +84,6 @@ def dejong5_gradient(x: np.ndarray, A: np.ndarray) -> np.ndarray:
     return np.sum(6.0 * d**5 / denom[..., None, :] ** 2, axis=-1) / s[..., None] ** 2
 
 
-@dataclass(frozen=True)
-class BFGSOptions:
-    """Options of the local solver: ``gtol`` is scipy's ∞-norm gradient tolerance, ``maxiter`` the cap."""
-
-    gtol: float = 1e-6
-    maxiter: int = 500
-
-    @classmethod
-    def from_dict(cls, options: dict | None) -> BFGSOptions:
-        """Build from a plain dict; unknown keys raise a ``ValueError`` naming them."""
-        options = dict(options or {})
-        unknown = set(options) - {"gtol", "maxiter"}
-        if unknown:
-            raise ValueError(f"dejong: unknown solver option(s) {sorted(unknown)}; valid: gtol, maxiter")
-        out = cls(**options)
-        if not (out.gtol > 0):
-            raise ValueError(f"dejong: solver option gtol must be > 0, got {out.gtol!r}")
-        if int(out.maxiter) < 1:
-            raise ValueError(f"dejong: solver option maxiter must be ≥ 1, got {out.maxiter!r}")
-        return out
-
-
 class DeJong5:
     """De Jong's 5th function family (paper Sec. III.A, Eq. 19–20, 38).
 
@@ -118,6 +97,7 @@ class DeJong5:
     lower = np.array([-50.0, -50.0])
     upper = np.array([50.0, 50.0])
     alpha_range = ALPHA_RANGES["dejong"]
+    options_type = BfgsOptions
 
     def sample_uniform(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         """``n`` initial guesses uniform in the box, shape (n, 2); the box does not depend on α."""
@@ -130,17 +110,18 @@ class DeJong5:
         """Validate one decision vector (length 2, finite, inside the box); ``ValueError`` names the field."""
         return check_vector(x, self.variable_names, self.lower, self.upper, self.name)
 
-    def make_local_solver(self, options: dict | None = None) -> DeJongBFGS:
-        """A BFGS solver; ``options``: ``gtol`` (default 1e-6), ``maxiter`` (default 500)."""
-        return DeJongBFGS(self, BFGSOptions.from_dict(options))
+    def make_local_solver(self, options: BfgsOptions | Mapping | None = None) -> DeJongBFGS:
+        """A BFGS solver; ``options`` as :class:`BfgsOptions` (a mapping or ``None`` is converted)."""
+        return DeJongBFGS(self, as_options(BfgsOptions, options))
 
 
 class DeJongBFGS:
     """scipy BFGS with the analytic gradient on J(·; α); see :meth:`solve`."""
 
-    def __init__(self, problem: DeJong5, options: BFGSOptions):
+    def __init__(self, problem: DeJong5, options: BfgsOptions):
         self.problem = problem
         self.options = options
+        self.options_hash = options.digest()
 
     def solve(self, x0: np.ndarray, alpha: float) -> SolveRecord:
         """Minimise J(·; α) from ``x0`` (shape (2,)).
@@ -162,7 +143,7 @@ class DeJongBFGS:
                 args=(A,),
                 jac=dejong5_gradient,
                 method="BFGS",
-                options={"gtol": self.options.gtol, "maxiter": int(self.options.maxiter)},
+                options={"gtol": self.options.gtol, "maxiter": self.options.maxiter},
             )
         except Exception as exc:  # noqa: BLE001 — a numerical failure is a record, never an exception
             return SolveRecord(

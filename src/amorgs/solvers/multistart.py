@@ -2,9 +2,11 @@
 
 Design (see DESIGN.md §4): CasADi objects do not pickle and IPOPT is not thread-safe, so every worker is a
 *spawned process* that builds its own local solver once and then solves the guesses it is sent.  The
-guesses are drawn in the parent from ``numpy.random.default_rng(seed)`` before any work starts, and every
-solve is deterministic (iteration cap first, wall cap only as a safety net), so the table is identical for
-any number of workers.  A worker that crashes or hangs past ``hard_timeout_s`` is killed and replaced; its
+solver's options travel typed end to end: the caller's options object (or a mapping, converted through the
+problem's ``options_type``, see :mod:`amorgs.solvers.options`) is validated in the parent, pickled to every
+worker and handed to the problem's local solver as it is.  The guesses are drawn in the parent from
+``numpy.random.default_rng(seed)`` before any work starts, and every solve is deterministic (iteration cap
+first, wall cap only as a safety net), so the table is identical for any number of workers.  A worker that crashes or hangs past ``hard_timeout_s`` is killed and replaced; its
 guess becomes one row with status ``crashed`` / ``timeout`` — it never takes the job down.
 """
 
@@ -17,28 +19,54 @@ import multiprocessing as mp
 import os
 import sys
 import time
+from collections.abc import Mapping
 from multiprocessing.connection import wait
 
 import numpy as np
 import pandas as pd
 
 from amorgs.problems import SolveRecord, get_problem
+from amorgs.solvers.options import Options, as_options
 
 BUILD_TIMEOUT_S = 900.0
+#: A worker's hard timeout per solve (s) when the solver has no wall cap of its own (``max_wall_s``).
+UNCAPPED_TIMEOUT_S = 600.0
 _THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
-def options_digest(problem: str, solver_options: dict | None) -> str:
-    """Stable short hash of (problem, options) for solvers that do not define their own."""
-    text = json.dumps({"problem": problem, "options": solver_options or {}}, sort_keys=True, default=str)
+OptionsLike = Options | Mapping | None
+"""What callers may pass as solver options: the problem's options object, a plain mapping, or ``None``."""
+
+
+def options_digest(problem: str, options: OptionsLike) -> str:
+    """Stable short hash of the options: the options object's own ``digest()``, else (an untyped user-defined
+    problem's mapping) the hash of (problem, options)."""
+    if hasattr(options, "digest"):
+        return options.digest()
+    text = json.dumps({"problem": problem, "options": dict(options or {})}, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
-def _worker(conn, problem_name: str, solver_options: dict | None) -> None:
+def resolve_options(problem, options: OptionsLike):
+    """``options`` as the typed object ``problem``'s solver takes (``problem.options_type``; a mapping or
+    ``None`` is converted, a bad value or unknown key raises ``ValueError`` naming it); a problem without an
+    ``options_type`` gets ``options`` as they are."""
+    options_type = getattr(problem, "options_type", None)
+    return options if options_type is None else as_options(options_type, options)
+
+
+def worker_timeout_s(options: OptionsLike) -> float:
+    """Hard timeout per solve (s): 2 × the solver's own wall cap ``max_wall_s`` + 30 s, or
+    ``UNCAPPED_TIMEOUT_S`` for a solver without one."""
+    wall = options.get("max_wall_s") if isinstance(options, Mapping) else getattr(options, "max_wall_s", None)
+    return UNCAPPED_TIMEOUT_S if wall is None else 2 * float(wall) + 30.0
+
+
+def _worker(conn, problem_name: str, options: OptionsLike) -> None:
     """Worker loop: build the solver, announce readiness, then answer (index, x0, alpha) tasks."""
     try:
-        solver = get_problem(problem_name).make_local_solver(solver_options)
-        digest = getattr(solver, "options_hash", None) or options_digest(problem_name, solver_options)
+        solver = get_problem(problem_name).make_local_solver(options)
+        digest = getattr(solver, "options_hash", None) or options_digest(problem_name, options)
         conn.send(("ready", digest, float(getattr(solver, "build_s", 0.0))))
     except Exception as exc:  # configuration errors surface in the parent with their message
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
@@ -63,9 +91,9 @@ def _worker(conn, problem_name: str, solver_options: dict | None) -> None:
 class _Slot:
     """One worker process and the task it is working on."""
 
-    def __init__(self, ctx, problem: str, solver_options: dict | None):
+    def __init__(self, ctx, problem: str, options: OptionsLike):
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker, args=(child, problem, solver_options), daemon=True)
+        self.proc = ctx.Process(target=_worker, args=(child, problem, options), daemon=True)
         self.proc.start()
         child.close()
         self.ready = False
@@ -84,16 +112,18 @@ def solve_guesses(
     alpha: float,
     guesses: np.ndarray,
     workers: int = 1,
-    solver_options: dict | None = None,
+    options: OptionsLike = None,
     hard_timeout_s: float | None = None,
     progress: bool = True,
     label: str = "",
 ) -> tuple[list[SolveRecord], dict]:
     """Solve every row of ``guesses`` at ``alpha``; returns records in input order and run info.
 
-    ``hard_timeout_s`` (default: 2 × the solver's ``max_wall_s`` + 30 s, or 600 s) kills a stuck worker.
+    ``options``: the solver's options (see :func:`resolve_options`); ``hard_timeout_s`` (default
+    :func:`worker_timeout_s`) kills a stuck worker.
     """
     prob = get_problem(problem)
+    options = resolve_options(prob, options)
     guesses = np.asarray(guesses, float)
     for i, g in enumerate(guesses):
         try:
@@ -103,8 +133,7 @@ def solve_guesses(
     if workers < 1:
         raise ValueError(f"workers must be ≥ 1, got {workers}")
     if hard_timeout_s is None:
-        cap = (solver_options or {}).get("max_wall_s", 270.0)
-        hard_timeout_s = 2 * float(cap) + 30.0
+        hard_timeout_s = worker_timeout_s(options)
     n = len(guesses)
     records: list[SolveRecord | None] = [None] * n
     info = {"build_s": [], "options_hash": None, "replaced_workers": 0}
@@ -112,7 +141,7 @@ def solve_guesses(
         os.environ.setdefault(key, "1")
     ctx = mp.get_context("spawn")
     pending = list(range(n))[::-1]
-    slots = [_Slot(ctx, problem, solver_options) for _ in range(min(workers, max(n, 1)))]
+    slots = [_Slot(ctx, problem, options) for _ in range(min(workers, max(n, 1)))]
     done = converged = 0
     t_start = time.monotonic()
 
@@ -168,7 +197,7 @@ def solve_guesses(
                     slot.kill()
                     slots.remove(slot)
                     if pending:
-                        slots.append(_Slot(ctx, problem, solver_options))
+                        slots.append(_Slot(ctx, problem, options))
                 elif not slot.ready and (dead or elapsed > limit):
                     raise RuntimeError(f"{problem} worker failed to start (exit code {slot.proc.exitcode})")
     finally:
@@ -178,24 +207,26 @@ def solve_guesses(
 
 
 def run_multistart(
-    problem: str,
+    problem_name: str,
     alpha: float,
     seed: int,
-    n_starts: int,
+    starts: int,
     workers: int = 1,
-    solver_options: dict | None = None,
+    options: OptionsLike = None,
     progress: bool = True,
     hard_timeout_s: float | None = None,
 ) -> pd.DataFrame:
-    """``n_starts`` uniform guesses drawn with ``default_rng(seed)``, solved; one row per start.
+    """``starts`` uniform guesses drawn with ``default_rng(seed)``, solved with ``options`` (the problem's
+    options object; a mapping or ``None`` is converted, see :func:`resolve_options`); one row per start.
 
     Columns: problem, alpha, seed, start, guess_<var>…, <var>…, status, converged, solver_success,
     objective, iterations, wall_s, cpu_s, defect, verify_defect, message, options_hash.
     """
-    prob = get_problem(problem)
-    guesses = prob.sample_uniform(alpha, n_starts, np.random.default_rng(seed))
-    records, info = solve_guesses(problem, alpha, guesses, workers, solver_options, hard_timeout_s, progress)
-    return records_table(problem, alpha, seed, guesses, records, prob.variable_names, info["options_hash"])
+    prob = get_problem(problem_name)
+    options = resolve_options(prob, options)
+    guesses = prob.sample_uniform(alpha, starts, np.random.default_rng(seed))
+    records, info = solve_guesses(problem_name, alpha, guesses, workers, options, hard_timeout_s, progress)
+    return records_table(problem_name, alpha, seed, guesses, records, prob.variable_names, info["options_hash"])
 
 
 def records_table(problem, alpha, seed, guesses, records, names, options_hash) -> pd.DataFrame:

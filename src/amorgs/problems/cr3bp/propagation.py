@@ -1,8 +1,9 @@
 """Independent re-propagation of stored solutions with scipy's adaptive DOP853 (spec §6).
 
 This is deliberately a different integrator from the NLP's fixed-step RK8: a solution counts as
-converged only if its match point closes here to ≤ 1e-5 in each of position (DU), velocity (VU) and fuel
-(kg / 1000).  The same code returns dense trajectories for figures.
+converged only if its match point closes here to within ``verify_tol``
+(:class:`~amorgs.solvers.options.IpoptOptions`) in each of position (DU), velocity (VU) and fuel (kg / 1000).
+The same code returns dense trajectories for figures.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from amorgs.problems.cr3bp.dynamics import powered_rhs
 
 VERIFY_RTOL = 1e-12
 VERIFY_ATOL = 1e-12
-VERIFY_TOLERANCE = 1e-5
 
 
 @dataclass

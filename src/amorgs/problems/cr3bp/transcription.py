@@ -16,19 +16,20 @@ independently: the constraint Jacobian and the Lagrangian Hessian become block-s
 is cheap.  Every piece is integrated with a fixed number of 8th-order Runge–Kutta steps (the DOP853
 tableau), time-scaled so that the step length follows the piece length: coasts are cut into
 ``coast_pieces`` pieces of ``steps_per_coast / coast_pieces`` steps, thrust segments take
-``steps_per_segment`` steps each.
+``steps_per_segment`` steps each.  Those choices are :class:`~amorgs.solvers.options.TranscriptionOptions`
+(part of the solver's options, since they change the solve but not the stored vector).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop853
 
 from amorgs.problems.cr3bp import constants as K
+from amorgs.solvers.options import TranscriptionOptions
 
 N_SEGMENTS = 20
 CORE_SIZE = 4 + 3 * N_SEGMENTS
@@ -40,50 +41,6 @@ def variable_names(n_segments: int = N_SEGMENTS) -> tuple[str, ...]:
     for k in range(1, n_segments + 1):
         names += [f"theta_{k:02d}", f"phi_{k:02d}", f"rho_{k:02d}"]
     return tuple(names)
-
-
-@dataclass(frozen=True)
-class TranscriptionOptions:
-    """Integration and layout choices; they do not change the stored 64-vector.
-
-    steps_per_segment: RK8 steps per thrust segment (length τ_s/N) at α = ``step_scaling_alpha``; below it
-        the count grows as ``ceil(steps_per_segment · sqrt(step_scaling_alpha / α))`` because low thrust means
-        long thrust arcs (τ_s up to 40 TU, segments of 2 TU ≈ one revolution near the spiral end).  Use
-        :meth:`for_alpha` to resolve it; ``step_scaling_alpha`` = 0 disables the scaling.
-    scale_down: apply the same law above ``step_scaling_alpha`` too (fewer steps at high thrust, where the
-        converged transfers are shorter), never below ``min_steps_per_segment``.
-    min_steps_per_segment: floor of the scaled count.
-    steps_per_coast: RK8 steps per coast arc (τ_i or τ_f), split evenly over ``coast_pieces``.
-    coast_pieces: sub-arcs per coast (each a shooting node when ``multiple_shooting``).
-    multiple_shooting: node states at every piece boundary (exact Hessian becomes sparse and cheap).
-    """
-
-    steps_per_segment: int = 24
-    steps_per_coast: int = 320
-    coast_pieces: int = 8
-    multiple_shooting: bool = False
-    step_scaling_alpha: float = 0.3
-    scale_down: bool = False
-    min_steps_per_segment: int = 1
-
-    def for_alpha(self, alpha: float) -> "TranscriptionOptions":
-        """The options with ``steps_per_segment`` resolved for this α (and the scaling switched off)."""
-        steps = self.steps_per_segment
-        if self.step_scaling_alpha > 0 and (alpha < self.step_scaling_alpha or self.scale_down):
-            steps = math.ceil(self.steps_per_segment * math.sqrt(self.step_scaling_alpha / alpha) - 1e-9)
-            steps = max(steps, self.min_steps_per_segment)
-        return replace(self, steps_per_segment=steps, step_scaling_alpha=0.0, scale_down=False,
-                       min_steps_per_segment=1)
-
-    def __post_init__(self) -> None:
-        for key in ("steps_per_segment", "steps_per_coast", "coast_pieces", "min_steps_per_segment"):
-            if int(getattr(self, key)) < 1:
-                raise ValueError(f"transcription option {key} must be ≥ 1, got {getattr(self, key)}")
-        if self.steps_per_coast % self.coast_pieces:
-            raise ValueError(
-                f"transcription option steps_per_coast={self.steps_per_coast} must be a multiple of "
-                f"coast_pieces={self.coast_pieces}"
-            )
 
 
 def _rhs_sx() -> ca.Function:
@@ -140,8 +97,8 @@ class ForwardBackwardTranscription:
     ``initial_state`` is ξ₀ (x, y, z, vx, vy, vz, fuel kg); ``terminal_state`` is ξ_f (6 entries).
     """
 
-    def __init__(self, initial_state, terminal_state, options: TranscriptionOptions | None = None):
-        self.options = options or TranscriptionOptions()
+    def __init__(self, initial_state, terminal_state, options: TranscriptionOptions):
+        self.options = options
         if self.options.step_scaling_alpha > 0:
             raise ValueError("resolve the α-dependent step count first: TranscriptionOptions.for_alpha(alpha)")
         opt = self.options

@@ -1,0 +1,18 @@
+"""The names of the models and their size presets — a light registry (no torch import), so the config, the
+workflow rules and the results layout take their names from here.
+
+CR3BP models (paper Sec. IV, Tables 4–5), one checkpoint ``<name>.pt`` each::
+
+    cvae_gmm      GMM-prior CVAE on (τ_s, τ_i, τ_f, m_f) given α
+    vanilla_cvae  standard-Gaussian CVAE on the whole decision vector given α
+    lstm          control LSTM given (τ_s, τ_i, τ_f, m_f, α)
+
+Presets pick layer widths: ``paper`` (Tables 4–5) or ``small`` (CPU-friendly) for the CR3BP models;
+``dejong_paper`` (Table 3) or ``small`` for the De Jong GMM-prior CVAE.
+"""
+
+from __future__ import annotations
+
+CR3BP_MODELS = ("cvae_gmm", "vanilla_cvae", "lstm")
+CR3BP_PRESETS = ("paper", "small")
+DEJONG_PRESETS = ("dejong_paper", "small")

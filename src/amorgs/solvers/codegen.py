@@ -1,0 +1,105 @@
+"""Compiled CasADi NLP solvers: a per-machine cache of gcc-built C code, per-process JIT, or no compilation.
+
+CasADi's virtual machine is ≈ 6× slower per IPOPT iteration than compiled C (DESIGN.md §4b), so the NLP
+functions are generated as C and compiled with gcc.  ``cache`` mode builds one shared library per
+(code identity, Hessian mode, gcc flags, machine) and keeps it under :func:`cache_dir`; ``jit`` compiles in
+every process (into a private temp dir, never the working tree); ``none`` interprets.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import subprocess
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+
+
+def cache_dir() -> Path:
+    """Where compiled NLP libraries are kept: ``$AMORGS_CACHE_DIR`` or ``~/.cache/amorgs``."""
+    return Path(os.environ.get("AMORGS_CACHE_DIR", Path.home() / ".cache" / "amorgs"))
+
+
+def cpu_identity() -> str:
+    """CPU model and instruction-set flags (part of the cache key when code is built with -march=native)."""
+    try:
+        info = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return platform.processor() or platform.machine()
+    model = next((line.split(":", 1)[1].strip() for line in info if line.startswith("model name")), "")
+    flags = next((line.split(":", 1)[1].strip() for line in info if line.startswith(("flags", "Features"))), "")
+    return f"{model}|{hashlib.sha256(flags.encode()).hexdigest()[:16]}"
+
+
+def compiled_nlp_library(name: str, nlp: dict, hessian: str, identity: dict, flags: str) -> Path:
+    """Shared library with the functions IPOPT needs for ``nlp``, generated and compiled once per machine.
+
+    ``identity`` must name everything the problem compiles into the code (for the CR3BP: transcription
+    options and the boundary states, embedded as constants); the key adds the Hessian mode, the CasADi
+    version, the CPU architecture and the gcc flags (plus the CPU model and instruction-set flags when they
+    include ``-march=native``).  Concurrent workers may race to build it; each compiles into a private temp
+    file and ``os.replace`` makes the winner atomic.
+    """
+    key = json.dumps(
+        {
+            **identity,
+            "hessian": hessian,
+            "casadi": ca.__version__,
+            "machine": platform.machine(),
+            "flags": flags,
+            "cpu": cpu_identity() if "native" in flags else "",
+            "format": 1,
+        },
+        sort_keys=True,
+    )
+    target = cache_dir() / f"{name}_nlp_{hashlib.sha256(key.encode()).hexdigest()[:16]}.so"
+    if target.is_file():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    plain = ca.nlpsol(name, "ipopt", nlp, {"ipopt": {"hessian_approximation": hessian}})
+    with tempfile.TemporaryDirectory(prefix="amorgs-codegen-", dir=target.parent) as tmp:
+        cwd = os.getcwd()
+        try:
+            os.chdir(tmp)
+            plain.generate_dependencies(f"{name}_nlp.c")
+        finally:
+            os.chdir(cwd)
+        built = Path(tmp) / target.name
+        subprocess.run(
+            ["gcc", *flags.split(), "-fPIC", "-shared", str(Path(tmp) / f"{name}_nlp.c"), "-o", str(built), "-lm"],
+            check=True,
+            capture_output=True,
+        )
+        os.replace(built, target)
+    return target
+
+
+def ipopt_nlpsol(
+    name: str, nlp: dict, opts: dict, mode: str, flags: str, hessian: str, identity: dict
+) -> tuple[ca.Function, tempfile.TemporaryDirectory | None]:
+    """An IPOPT ``nlpsol`` for ``nlp`` with CasADi options ``opts``, compiled per ``mode``.
+
+    ``mode``: ``"cache"`` (:func:`compiled_nlp_library`), ``"jit"`` (compiled in this process; the returned
+    temp dir holds the build and must live as long as the solver) or ``"none"``.
+    """
+    if mode == "cache":
+        library = compiled_nlp_library(name, nlp, hessian, identity, flags)
+        return ca.nlpsol(name, "ipopt", str(library), opts), None
+    if mode == "jit":
+        # CasADi writes the JIT source into the working directory: build inside a private temp dir.
+        jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
+        opts = {**opts, "jit": True, "jit_cleanup": False, "compiler": "shell",
+                "jit_options": {"flags": flags.split(), "verbose": False, "directory": jit_dir.name}}
+        cwd = os.getcwd()
+        try:
+            os.chdir(jit_dir.name)
+            return ca.nlpsol(name, "ipopt", nlp, opts), jit_dir
+        finally:
+            os.chdir(cwd)
+    if mode == "none":
+        return ca.nlpsol(name, "ipopt", nlp, opts), None
+    raise ValueError(f"compile mode must be 'cache', 'jit' or 'none', got {mode!r}")

@@ -1,0 +1,185 @@
+"""The typed options of the local solvers: one frozen class per solver, every default defined here and only here.
+
+* :class:`IpoptOptions` — IPOPT on the CR3BP forward–backward transcription (:mod:`amorgs.solvers.ipopt`),
+  with the transcription's own choices nested as :class:`TranscriptionOptions`;
+* :class:`BfgsOptions` — scipy BFGS on De Jong's 5th function (:mod:`amorgs.problems.dejong`).
+
+They are pydantic dataclasses: a wrong type, a value out of range or an unknown key raises a
+``pydantic.ValidationError`` (a ``ValueError``) that names the field, and they can serve directly as the types
+of the config keys ``problems.cr3bp.solver`` / ``problems.dejong.solver`` of a pydantic config model (their
+JSON Schema comes from the field annotations below).  ``to_dict`` gives the plain JSON-able dict that is
+hashed into every solution row (``digest``, stored as ``options_hash``); ``from_mapping`` builds an object
+from such a dict (a config section, a CLI JSON string once parsed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from typing import Annotated, Any, Literal, Protocol, TypeVar
+
+import pydantic
+from pydantic import Field
+from pydantic.dataclasses import dataclass
+
+_CONFIG = pydantic.ConfigDict(extra="forbid")
+_T = TypeVar("_T")
+
+
+def _sha12(obj: Any) -> str:
+    """First 12 hex digits of the SHA-256 of ``obj`` as sorted-key JSON."""
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:12]
+
+
+class _Options:
+    """``to_dict`` / ``from_mapping`` shared by the options classes below."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The options as a plain JSON-able dict (nested options as nested dicts)."""
+        return dataclasses.asdict(self)  # type: ignore[call-overload]
+
+    @classmethod
+    def from_mapping(cls: type[_T], mapping: Mapping[str, Any] | None) -> _T:
+        """Build from a plain mapping (e.g. a config section); missing keys take their defaults."""
+        return _adapter(cls).validate_python(dict(mapping or {}))
+
+
+@functools.cache
+def _adapter(cls: type) -> pydantic.TypeAdapter:
+    return pydantic.TypeAdapter(cls)
+
+
+@dataclass(frozen=True, config=_CONFIG)
+class TranscriptionOptions(_Options):
+    """Integration and layout choices of the CR3BP transcription (:mod:`amorgs.problems.cr3bp.transcription`);
+    they never change the stored 64-vector.  Use :meth:`for_alpha` to resolve the α-dependent step count."""
+
+    steps_per_segment: Annotated[int, Field(ge=1, description=(
+        "RK8 steps per thrust segment (length τ_s/N) at α = step_scaling_alpha; below it the count grows as "
+        "ceil(steps_per_segment · sqrt(step_scaling_alpha / α)) because low thrust means long thrust arcs"))] = 24
+    steps_per_coast: Annotated[int, Field(ge=1, description=(
+        "RK8 steps per coast arc (τ_i or τ_f), split evenly over coast_pieces"))] = 320
+    coast_pieces: Annotated[int, Field(ge=1, description=(
+        "sub-arcs per coast (each a shooting node with multiple_shooting); must divide steps_per_coast"))] = 8
+    multiple_shooting: Annotated[bool, Field(description=(
+        "node states at every piece boundary (the exact Hessian becomes sparse and cheap)"))] = False
+    step_scaling_alpha: Annotated[float, Field(ge=0, description=(
+        "α (N) at which steps_per_segment applies; 0 switches the α scaling off"))] = 0.3
+    scale_down: Annotated[bool, Field(description=(
+        "apply the step law above step_scaling_alpha too (fewer steps at high thrust), never below "
+        "min_steps_per_segment"))] = False
+    min_steps_per_segment: Annotated[int, Field(ge=1, description="floor of the scaled step count")] = 1
+
+    @pydantic.model_validator(mode="after")
+    def _pieces_divide_coast(self) -> TranscriptionOptions:
+        if self.steps_per_coast % self.coast_pieces:
+            raise ValueError(f"transcription option steps_per_coast={self.steps_per_coast} must be a multiple of "
+                             f"coast_pieces={self.coast_pieces}")
+        return self
+
+    def for_alpha(self, alpha: float) -> TranscriptionOptions:
+        """The options with ``steps_per_segment`` resolved for this α (and the scaling switched off)."""
+        steps = self.steps_per_segment
+        if self.step_scaling_alpha > 0 and (alpha < self.step_scaling_alpha or self.scale_down):
+            steps = math.ceil(self.steps_per_segment * math.sqrt(self.step_scaling_alpha / alpha) - 1e-9)
+            steps = max(steps, self.min_steps_per_segment)
+        return dataclasses.replace(self, steps_per_segment=steps, step_scaling_alpha=0.0, scale_down=False,
+                                   min_steps_per_segment=1)
+
+
+@dataclass(frozen=True, config=_CONFIG)
+class IpoptOptions(_Options):
+    """Everything that determines a CR3BP local solve with IPOPT; hashed into every solution row.
+
+    ``max_iter`` is the primary cap (deterministic); ``max_wall_s`` is only a safety net.  Tolerances on
+    defects are in the transcription's internal units: position DU, velocity VU, fuel tonnes.
+
+    Stall abort (deterministic: iteration counts and infeasibility only, never wall time): with
+    ``stall_window`` = W > 0 a solve stops with status ``aborted_stalled`` at the first iteration i ≥ W where
+    the best max|g| so far is above ``stall_floor`` and above ``stall_factor`` × the best max|g| up to
+    iteration i − W.  The rule was chosen from the infeasibility traces of converged vs failed starts
+    (docs/performance.md) and is off by default.
+    """
+
+    hessian: Annotated[Literal["limited-memory", "exact"], Field(description=(
+        "IPOPT hessian_approximation: L-BFGS ('limited-memory') or the exact Lagrangian Hessian"))] = "limited-memory"
+    lbfgs_memory: Annotated[int, Field(ge=1, description=(
+        "L-BFGS history length in update pairs (IPOPT limited_memory_max_history)"))] = 30
+    max_iter: Annotated[int, Field(ge=1, description=(
+        "IPOPT iteration cap (iterations): the primary, deterministic limit"))] = 1000
+    max_wall_s: Annotated[float, Field(gt=0, description=(
+        "IPOPT wall-clock cap per solve (s), a safety net only: under load it changes outcomes; the multistart "
+        "pool kills a worker stuck past 2 × max_wall_s + 30 s"))] = 300.0
+    tol: Annotated[float, Field(gt=0, description="IPOPT tol: scaled NLP error tolerance (dimensionless)")] = 1e-6
+    acceptable_tol: Annotated[float, Field(gt=0, description=(
+        "IPOPT acceptable_tol: the looser 'acceptable' NLP error (dimensionless)"))] = 1e-4
+    acceptable_iter: Annotated[int, Field(ge=0, description=(
+        "IPOPT acceptable_iter: consecutive acceptable iterations that end a solve (iterations; 0: never)"))] = 10
+    feasibility_tol: Annotated[float, Field(gt=0, description=(
+        "bound on the NLP's own match-point defect max|g| (DU, VU, tonnes) for a solve to count; IPOPT "
+        "constr_viol_tol and acceptable_constr_viol_tol"))] = 1e-8
+    verify_tol: Annotated[float, Field(gt=0, description=(
+        "bound on the independent DOP853 re-propagation defect (DU, VU, tonnes) for a solve to be "
+        "'converged' (spec §6)"))] = 1e-5
+    linear_solver: Annotated[str, Field(min_length=1, description=(
+        "IPOPT linear_solver ('mumps' or 'spral' in the pip casadi build)"))] = "mumps"
+    stall_window: Annotated[int, Field(ge=0, description=(
+        "stall abort window W (IPOPT iterations); 0 switches the abort off"))] = 0
+    stall_factor: Annotated[float, Field(gt=0, le=1, description=(
+        "stall abort: the best max|g| must fall below this fraction of its value W iterations earlier "
+        "(dimensionless)"))] = 0.5
+    stall_floor: Annotated[float, Field(ge=0, description=(
+        "stall abort: never abort once the best max|g| is at or below this (DU, VU, tonnes)"))] = 1e-6
+    compile: Annotated[Literal["cache", "jit", "none"], Field(description=(
+        "how the NLP functions are compiled: 'cache' (C code built once per machine, "
+        ":mod:`amorgs.solvers.codegen`), 'jit' (per process) or 'none' (CasADi's virtual machine, ≈ 6× slower)"
+    ))] = "cache"
+    compile_flags: Annotated[str, Field(pattern=r"\S", description=(
+        "gcc flags of the compiled NLP (part of the cache key, with the CPU model under -march=native); "
+        "-ffp-contract=off keeps the floating-point results of -O2 bit for bit, only the speed changes"
+    ))] = "-O3 -march=native -ffp-contract=off"
+    ipopt_options: Annotated[dict[str, str | int | float], Field(description=(
+        "extra IPOPT options, applied last (they override the ones derived from the fields above)"
+    ))] = dataclasses.field(default_factory=dict)
+    transcription: Annotated[TranscriptionOptions, Field(description=(
+        "integration and layout of the transcription"))] = dataclasses.field(default_factory=TranscriptionOptions)
+
+    def digest(self) -> str:
+        """Short stable hash of :meth:`to_dict` (stored in every row as ``options_hash``)."""
+        return _sha12(self.to_dict())
+
+
+@dataclass(frozen=True, config=_CONFIG)
+class BfgsOptions(_Options):
+    """scipy BFGS with the analytic gradient on De Jong's 5th function; hashed into every solution row."""
+
+    gtol: Annotated[float, Field(gt=0, description=(
+        "scipy gtol: stop when the ∞-norm of the gradient of J is below this (J and x are dimensionless)"))] = 1e-6
+    maxiter: Annotated[int, Field(ge=1, description="BFGS iteration cap (iterations)")] = 500
+
+    def digest(self) -> str:
+        """Short stable hash of :meth:`to_dict`, keyed ``{"problem": "dejong", "options": …}`` as De Jong rows
+        have always been (so the hash of the same options does not change)."""
+        return _sha12({"problem": "dejong", "options": self.to_dict()})
+
+
+class Options(Protocol):
+    """What the multistart pool needs of a solver's options (both classes above)."""
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+    def digest(self) -> str: ...
+
+
+def as_options(options_type: type[_T], options: _T | Mapping[str, Any] | None) -> _T:
+    """``options`` as an ``options_type``: an instance as it is, ``None`` as the defaults, a mapping through
+    ``from_mapping`` (the path of plain config dicts); anything else raises ``TypeError``."""
+    if isinstance(options, options_type):
+        return options
+    if options is None or isinstance(options, Mapping):
+        return options_type.from_mapping(options)  # type: ignore[attr-defined]
+    raise TypeError(f"solver options must be {options_type.__name__} or a mapping, got {type(options).__name__}")

@@ -1,0 +1,221 @@
+"""The workflow's steps: one :class:`Step` per Snakemake rule, the single source of each job's settings,
+outputs and expected jobs.
+
+A step says, for one rule:
+
+- ``settings(cfg, wildcards)``: the part of the validated :class:`~amorgs.config.Config` the job needs, as
+  one typed object (a :class:`~amorgs.config.Section` subclass, :attr:`Step.settings_type`).  The rule passes
+  it to the job as JSON (so a changed setting re-runs the job: Snakemake's params trigger), and the job
+  validates it again before doing anything;
+- ``run(job, run)``: the work, given a :class:`Job` (wildcards, named inputs and outputs, threads, settings)
+  and its MLflow child run (:class:`amorgs.tracking.JobRun`);
+- ``jobs(cfg)``: the wildcards of every job of this rule that a complete run of ``cfg`` executes, and
+  ``outputs(wildcards)``: the named outputs of one job (path templates of :mod:`amorgs.layout`).  From these
+  two come the targets of ``rule all`` (:func:`targets`) and the MLflow jobs ``amorgs check-outputs`` expects
+  (:func:`expected_jobs`) — the job graph is written once, here and in the rule's inputs.
+
+Every rule runs the same command, ``python -m amorgs step --job <JSON>``: the wildcards and the named inputs
+and outputs in the JSON are those Snakemake resolved, and they tag the job's MLflow run (:func:`run_job`).
+The rule's name is the one thing a rule writes itself (``params: job=step_job("<rule>")``: Snakemake gives a
+params function no rule name); :func:`check_rules` checks it against Snakemake's own name at parse time.
+
+Adding a step: write its module under ``amorgs/steps/`` with a ``STEPS`` tuple, list the module in
+:data:`_MODULES`, and add one rule of the same name (``output: **step_outputs(...)``,
+``params: job=step_job(...)``, ``shell: STEP``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from amorgs.config import Config, Section
+from amorgs.errors import InputError
+
+Wildcards = Mapping[str, str]
+Outputs = dict[str, "str | list[str]"]
+
+#: The stage modules, in workflow order; each defines ``STEPS``.
+_MODULES = ("generate", "filter", "dejong", "analyze", "train", "predict", "ablation")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One job as Snakemake scheduled it: its rule, wildcards, named inputs and outputs (a path or a list of
+    paths each), cores, and the step's validated settings."""
+
+    rule: str
+    wildcards: dict[str, str]
+    input: dict[str, Any]
+    output: dict[str, Any]
+    threads: int
+    settings: Any
+
+
+@dataclass(frozen=True)
+class Step:
+    """One workflow step (one Snakemake rule); see the module docstring."""
+
+    rule: str
+    settings_type: type[Section]
+    settings: Callable[[Config, Wildcards], Section]
+    run: Callable[[Job, Any], None]
+    jobs: Callable[[Config], list[dict[str, str]]]
+    outputs: Callable[[Wildcards], Outputs]
+    #: (caption file under workflow/report/ without .rst, category) of the figures in ``snakemake --report``.
+    report: tuple[str, str] | None = None
+    description: str = field(default="")
+
+
+def once_if(section: str) -> Callable[[Config], list[dict[str, str]]]:
+    """``jobs`` of a step without wildcards: one job when the config section at the dotted path ``section``
+    (e.g. ``"dejong_cvae"``, ``"problems.dejong"``) is enabled, none otherwise."""
+
+    def jobs(cfg: Config) -> list[dict[str, str]]:
+        obj = cfg
+        for part in section.split("."):
+            obj = getattr(obj, part)
+        return [{}] if obj.enabled else []
+
+    return jobs
+
+
+def _load() -> dict[str, Step]:
+    steps: dict[str, Step] = {}
+    for name in _MODULES:
+        for step in importlib.import_module(f"amorgs.steps.{name}").STEPS:
+            if step.rule in steps:
+                raise RuntimeError(f"step {step.rule!r} is defined twice")
+            steps[step.rule] = step
+    return steps
+
+
+_REGISTRY: dict[str, Step] | None = None
+
+
+def registry() -> dict[str, Step]:
+    """Rule name → :class:`Step`, every step of the workflow (loaded once; the stage modules import their
+    heavy dependencies — solvers, torch, matplotlib — only inside ``run``)."""
+    global _REGISTRY
+    if _REGISTRY is None:
+        _REGISTRY = _load()
+    return _REGISTRY
+
+
+def get_step(rule: str) -> Step:
+    steps = registry()
+    if rule not in steps:
+        raise InputError(f"no workflow step {rule!r}; steps: {', '.join(steps)}")
+    return steps[rule]
+
+
+# ------------------------------------------------------------------------------------ the job graph
+
+
+def _flat(outputs: Outputs) -> list[str]:
+    return [p for v in outputs.values() for p in ([v] if isinstance(v, str) else v)]
+
+
+def expected_jobs(cfg: Config) -> list[tuple[str, dict[str, str]]]:
+    """(rule, wildcards) of every job a complete run of ``cfg`` executes."""
+    return [(rule, w) for rule, step in registry().items() for w in step.jobs(cfg)]
+
+
+def targets(cfg: Config) -> list[str]:
+    """Every output of every job of ``cfg``: the inputs of ``rule all``, and what ``check-outputs`` checks."""
+    return [p for rule, w in expected_jobs(cfg) for p in _flat(registry()[rule].outputs(w))]
+
+
+def outputs_of(rule: str, cfg: Config, name: str, **match: str) -> list[str]:
+    """Output ``name`` of every job of ``rule`` in ``cfg`` whose wildcards include ``match`` — the inputs of
+    a downstream rule (e.g. the shards of one (problem, α) for its merge)."""
+    step = registry()[rule]
+    out: list[str] = []
+    for w in step.jobs(cfg):
+        if all(w.get(k) == v for k, v in match.items()):
+            value = step.outputs(w)[name]
+            out += [value] if isinstance(value, str) else value
+    return out
+
+
+def check_settings(cfg: Config) -> None:
+    """Build the settings of every job of ``cfg`` once (the Snakefile calls this at start), so whatever a
+    job's settings would reject is rejected before the first job runs."""
+    for rule, w in expected_jobs(cfg):
+        registry()[rule].settings(cfg, w)
+
+
+def check_rules(rules: Mapping[str, Any]) -> None:
+    """Check the workflow's rules against the steps: ``rules`` maps each Snakemake rule name to its
+    ``params.job`` (None for rules without one, like ``all``).  Every step needs a rule of its name, and a
+    rule's job must be built for that rule; otherwise a ``RuntimeError`` names both."""
+    for name, job in rules.items():
+        step = getattr(job, "step", None)
+        if job is not None and step != name:
+            raise RuntimeError(f"rule {name} hands its job to step {step!r}: use params: job=step_job({name!r})")
+    missing = sorted(set(registry()) - set(rules))
+    if missing:
+        raise RuntimeError(f"steps without a rule of their name: {missing}")
+
+
+class _Template(dict):
+    """``str.format_map`` mapping that leaves every wildcard as ``{name}`` (the rule's output templates)."""
+
+    def __missing__(self, key: str) -> str:
+        return "{" + key + "}"
+
+    def __getitem__(self, key: str) -> str:
+        return "{" + key + "}"
+
+
+def output_templates(rule: str) -> Outputs:
+    """The named output templates of ``rule`` (wildcards left as ``{name}``), for the rule's ``output:``."""
+    return registry()[rule].outputs(_Template())
+
+
+# ---------------------------------------------------------------------------------------- running a job
+
+
+def job_spec(rule: str, cfg: Config, wildcards: Wildcards, input: Mapping, output: Mapping, threads: int) -> str:
+    """The JSON a rule hands to ``amorgs step`` (Snakemake's named inputs and outputs, the step's settings)."""
+    step = registry()[rule]
+    return json.dumps(
+        {
+            "rule": rule,
+            "wildcards": dict(wildcards),
+            "input": {k: (v if isinstance(v, str) else list(v)) for k, v in input.items()},
+            "output": {k: (v if isinstance(v, str) else list(v)) for k, v in output.items()},
+            "threads": int(threads),
+            "settings": step.settings(cfg, wildcards).model_dump(mode="json"),
+        },
+        sort_keys=True,
+    )
+
+
+def run_job(spec_json: str) -> None:
+    """Run one job from the JSON of :func:`job_spec` inside its MLflow child run (tagged with the rule and the
+    wildcards Snakemake gave; the settings logged as parameters)."""
+    from amorgs import tracking
+
+    try:
+        spec = json.loads(spec_json)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"step --job is not JSON: {exc}") from None
+    missing = {"rule", "wildcards", "input", "output", "threads", "settings"} - set(spec)
+    if missing:
+        raise InputError(f"step --job lacks {sorted(missing)}")
+    rule = spec["rule"]
+    step = get_step(rule)
+    settings = step.settings_type.model_validate(spec["settings"])
+    job = Job(rule, dict(spec["wildcards"]), spec["input"], spec["output"], int(spec["threads"]), settings)
+    with tracking.job_run(rule, job.wildcards) as run:
+        run.log_params(settings.model_dump(mode="json"))
+        step.run(job, run)
+
+
+def run_step(rule: str, cfg: Config, wildcards: Wildcards, input: Mapping, output: Mapping, threads: int = 1) -> None:
+    """Run one job of ``rule`` in this process, as Snakemake would (for tests and notebooks)."""
+    run_job(job_spec(rule, cfg, wildcards, input, output, threads))

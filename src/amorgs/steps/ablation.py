@@ -1,0 +1,174 @@
+"""The warm-start ablation (paper Sec. V.B.7–8, issue 11): per (test α, sampler) one job solving guesses from
+that sampler with the CR3BP solver options — once with the models of ``cr3bp_models.seed``, and once more per
+``cr3bp_models.extra_seeds`` (replicates: their own models, their own cell seed); then the report: Table 6,
+the capped studies, coverage, rates + Fisher tests, the β sweep, expected running time, anytime curves and
+Figs. 21–23."""
+
+from __future__ import annotations
+
+import os
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from amorgs import layout
+from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS, SAMPLER_NAMES
+from amorgs.config import Config, Section
+from amorgs.data.seeds import cell_seed
+from amorgs.errors import InputError
+from amorgs.solvers.options import IpoptOptions
+from amorgs.steps import Job, Step, Wildcards, once_if
+from amorgs.steps.outputs import finite_metrics, use_agg, write_figures
+
+
+class CellSettings(Section):
+    """One cell: ``starts`` guesses of ``sampler`` at the exact test ``alpha``, drawn with ``seed`` (derived
+    from the ablation seed, α, the sampler and — for a replicate — the model seed), solved with ``solver``.
+    The reuse baselines draw from the training-α rows (``train_alphas``) of the high-quality table."""
+
+    alpha: float
+    sampler: Literal[SAMPLER_NAMES]  # type: ignore[valid-type]
+    model_seed: Annotated[int, Field(ge=0)]
+    starts: Annotated[int, Field(ge=1)]
+    seed: Annotated[int, Field(ge=0)]
+    solver: IpoptOptions
+    train_alphas: tuple[float, ...]
+    perturbation_scale: Annotated[float, Field(ge=0)]
+    gmm_components: Annotated[int, Field(ge=1)]
+
+
+def _cell_settings(cfg: Config, w: Wildcards) -> CellSettings:
+    a, cr3bp = cfg.ablation, cfg.problems.cr3bp
+    alpha = cr3bp.alpha_values()[w["alpha"]]
+    replicate = "mseed" in w
+    name = f"{w['sampler']}@seed={w['mseed']}" if replicate else w["sampler"]
+    return CellSettings(alpha=alpha, sampler=w["sampler"],
+                        model_seed=int(w["mseed"]) if replicate else cfg.cr3bp_models.seed,
+                        starts=a.n_starts, seed=cell_seed(a.seed, "cr3bp", alpha, name), solver=cr3bp.solver,
+                        train_alphas=cr3bp.alphas.train_values(), perturbation_scale=a.perturbation_scale,
+                        gmm_components=a.gmm_components)
+
+
+def run_cell(job: Job, run) -> None:
+    from amorgs.ablation.experiment import run_cell as solve_cell
+    from amorgs.data.io import write_parquet
+    from amorgs.models.samplers import build_sampler
+    from amorgs.problems import get_problem
+
+    s: CellSettings = job.settings
+    models = job.input.get("models", [])
+    if s.sampler in NEEDS_HIGH_QUALITY and "high_quality" not in job.input:
+        raise InputError(f"ablation_cell: {s.sampler} needs the high-quality table (input high_quality)")
+    if len(models) < len(NEEDS_MODELS[s.sampler]):
+        raise InputError(f"ablation_cell: {s.sampler} needs the checkpoints {NEEDS_MODELS[s.sampler]} (input models)")
+    hq = None
+    if s.sampler in NEEDS_HIGH_QUALITY:
+        import pandas as pd
+
+        hq = pd.read_parquet(job.input["high_quality"])
+    sampler = build_sampler(s.sampler, get_problem("cr3bp"), os.path.dirname(models[0]) if models else None,
+                            high_quality=hq, train_alphas=s.train_alphas, perturbation_scale=s.perturbation_scale,
+                            gmm_components=s.gmm_components)
+    df = solve_cell("cr3bp", s.alpha, sampler, s.starts, s.seed, s.solver, job.threads)
+    df.insert(2, "model_seed", s.model_seed)
+    write_parquet(df, job.output["table"])
+    conv = df[df["converged"]]
+    run.log_metrics({
+        "starts": len(df),
+        "converged": len(conv),
+        "converged_fraction": len(conv) / len(df),
+        "iterations_median": conv["iterations"].median() if len(conv) else None,
+        "solve_wall_s_total": df["wall_s"].sum(),
+    })
+    print(f"{job.output['table']}: {len(df)} solves, {len(conv)} converged")
+
+
+def cell_jobs(cfg: Config) -> list[dict[str, str]]:
+    if not cfg.ablation.enabled:
+        return []
+    return [{"alpha": label, "sampler": s} for label in _test_labels(cfg) for s in cfg.ablation.samplers]
+
+
+def replicate_cell_jobs(cfg: Config) -> list[dict[str, str]]:
+    return [{"mseed": str(m), **w} for m in cfg.cr3bp_models.extra_seeds for w in cell_jobs(cfg)]
+
+
+def _test_labels(cfg: Config) -> list[str]:
+    from amorgs.alphas import alpha_label
+
+    return [alpha_label(a) for a in cfg.problems.cr3bp.alphas.test]
+
+
+def cell_models(sampler: str, model_template: str, wildcards: Wildcards) -> list[str]:
+    """The checkpoints ``sampler`` loads (none for uniform and the reuse baselines)."""
+    return [model_template.format_map({**dict(wildcards), "model": m}) for m in NEEDS_MODELS[sampler]]
+
+
+class ReportSettings(Section):
+    """β (kg) of a high-quality solution, the β sweep (kg), the Fig. 22 iteration caps fixed before the
+    solves (≤ ``max_iter``), and ``n_boot`` bootstrap resamples drawn with ``seed``."""
+
+    beta_kg: float
+    beta_sweep_kg: tuple[float, ...]
+    iteration_caps: tuple[int, ...]
+    max_iter: int
+    n_boot: int
+    seed: int
+
+
+def _report_settings(cfg: Config, w: Wildcards) -> ReportSettings:
+    a = cfg.ablation
+    return ReportSettings(beta_kg=cfg.problems.cr3bp.filter.min_final_mass_kg, beta_sweep_kg=a.beta_sweep_kg,
+                          iteration_caps=a.iteration_caps, max_iter=cfg.problems.cr3bp.solver.max_iter,
+                          n_boot=a.n_boot, seed=a.seed)
+
+
+def run_report(job: Job, run) -> None:
+    use_agg()
+    import pandas as pd
+
+    from amorgs.ablation.report import MARKDOWN_TITLES, markdown_table, summarize, table6_markdown
+    from amorgs.data.io import atomic_path, write_json
+    from amorgs.figures.ablation import ablation_figures
+
+    s: ReportSettings = job.settings
+    cells = job.input["cells"]
+    truth = pd.read_parquet(job.input["high_quality"])
+    run.log_params({"cells": len(cells)})
+    run.log_dataset(truth, job.input["high_quality"], "evaluation")  # the ground truth at the test α
+    report = summarize(pd.concat([pd.read_parquet(p) for p in cells], ignore_index=True), truth, s.beta_kg,
+                       n_boot=s.n_boot, seed=s.seed, beta_sweep=s.beta_sweep_kg, iteration_caps=s.iteration_caps,
+                       max_iter=s.max_iter)
+    tables = report.tables
+    by_name = {os.path.basename(p): p for p in job.output["tables"]}
+    with atomic_path(by_name["table6.md"]) as tmp:
+        tmp.write_text(table6_markdown(tables["table6"]) + "\n")
+    for key, table in tables.items():
+        stem = key if key == "table6" else f"ablation_{key}"
+        with atomic_path(by_name[f"{stem}.csv"]) as tmp:
+            table.to_csv(tmp, index=False)
+        if key in MARKDOWN_TITLES:
+            with atomic_path(by_name[f"{stem}.md"]) as tmp:
+                tmp.write_text(markdown_table(table, f"**{MARKDOWN_TITLES[key]}**"))
+    write_json(report.metrics, job.output["summary"])
+    run.log_metrics(finite_metrics(report.metrics))
+    for path in [job.output["summary"], *job.output["tables"]]:
+        run.log_artifact(path, "tables")
+    write_figures(ablation_figures(report), job.output["figures"], run)
+    print(f"{job.output['summary']}: {len(report.metrics)} metrics over {len(cells)} cells")
+
+
+STEPS = (
+    Step("ablation_cell", CellSettings, _cell_settings, run_cell, cell_jobs,
+         lambda w: {"table": layout.ABLATION_CELL.format_map(w)},
+         description="solve the guesses of one sampler at one test α → cell table"),
+    Step("ablation_cell_replicate", CellSettings, _cell_settings, run_cell, replicate_cell_jobs,
+         lambda w: {"table": layout.ABLATION_REPLICATE_CELL.format_map(w)},
+         description="a cell with the models of an extra training seed"),
+    Step("ablation_report", ReportSettings, _report_settings, run_report, once_if("ablation"),
+         lambda w: {"summary": layout.ABLATION_SUMMARY,
+                    "tables": [layout.TABLE.format(name=n) for n in layout.ABLATION_TABLES],
+                    "figures": [layout.FIGURE.format(name=n) for n in layout.ABLATION_FIGURES]},
+         report=("ablation", "CR3BP ablation"),
+         description="Table 6, capped studies, coverage, rates, β sweep, aRT, anytime curves; Figs. 21–23"),
+)

@@ -1,0 +1,87 @@
+"""The CR3BP models (paper Sec. IV): each trained on the high-quality rows at the training α only (the test α
+are generated for the ground truth, never trained on); Fig. 18's GMM-CVAEs on fractions of the data; and the
+models of every extra training seed (the ablation's replicates)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from amorgs import layout
+from amorgs.alphas import alpha_label, rows_at_any
+from amorgs.config import Config, Cr3bpModels, Section
+from amorgs.models.names import CR3BP_MODELS
+from amorgs.steps import Job, Step, Wildcards
+
+
+class TrainSettings(Section):
+    """One CR3BP model: the ``cr3bp_models`` section, the training ``seed`` of this job (the section's seed,
+    or an extra seed for a replicate), the training α, and the data ``fraction`` (1: every row)."""
+
+    models: Cr3bpModels
+    model: Literal[CR3BP_MODELS]  # type: ignore[valid-type]
+    seed: Annotated[int, Field(ge=0)]
+    fraction: Annotated[float, Field(gt=0, le=1)] = 1.0
+    train_alphas: tuple[float, ...]
+
+
+def _settings(cfg: Config, w: Wildcards) -> TrainSettings:
+    m = cfg.cr3bp_models
+    return TrainSettings(models=m, model=w.get("model", "cvae_gmm"), seed=int(w.get("mseed", m.seed)),
+                         fraction=float(w.get("fraction", 1.0)), train_alphas=cfg.problems.cr3bp.alphas.train_values())
+
+
+def run_train(job: Job, run) -> None:
+    import pandas as pd
+    import torch
+
+    from amorgs.data.io import atomic_path
+    from amorgs.models import cvae, lstm
+    from amorgs.models.cr3bp_models import TRAINERS, subsample
+    from amorgs.models.training import TrainConfig
+
+    s: TrainSettings = job.settings
+    m = s.models
+    torch.set_num_threads(job.threads)
+    data, output = job.input["high_quality"], job.output["model"]
+    hq = rows_at_any(pd.read_parquet(data), s.train_alphas).reset_index(drop=True)
+    if len(hq) < 2:
+        labels = sorted(alpha_label(a) for a in s.train_alphas)
+        raise ValueError(f"{data}: {len(hq)} high-quality row(s) at the training α {labels}; need ≥ 2")
+    if s.fraction < 1.0:
+        hq = subsample(hq, s.fraction, s.seed)
+    cfg = TrainConfig(epochs=m.epochs, batch_size=m.batch_size, lr=m.learning_rate, seed=s.seed, device="cpu")
+    run.log_params({"rows": len(hq), "threads": job.threads})
+    run.log_dataset(hq, data, "training")
+    run.start_model(s.model, {"preset": m.preset, "fraction": s.fraction, **vars(cfg)})
+    torch.manual_seed(s.seed)
+    model = TRAINERS[s.model](hq, m.preset, cfg, on_epoch=lambda epoch, metrics: run.log_metrics(metrics, step=epoch))
+    with atomic_path(output) as tmp:
+        (lstm.save if s.model == "lstm" else cvae.save)(model, tmp)
+    run.finish_model(output, step=m.epochs)  # the checkpoint as a logged model and under models/
+    print(f"{output}: {s.model} trained {m.epochs} epochs on {len(hq)} solutions")
+
+
+def replicate_models_needed(cfg: Config) -> list[str]:
+    """The models the ablation's arms load (only those are trained for the extra seeds)."""
+    from amorgs.ablation.arms import NEEDS_MODELS
+
+    return sorted({m for s in cfg.ablation.samplers for m in NEEDS_MODELS[s]}) if cfg.ablation.enabled else []
+
+
+STEPS = (
+    Step("train_cr3bp", TrainSettings, _settings, run_train,
+         lambda cfg: [{"model": m} for m in CR3BP_MODELS] if cfg.cr3bp_models.enabled else [],
+         lambda w: {"model": layout.CR3BP_MODEL.format_map(w)},
+         description="one CR3BP model on the high-quality rows at the training α → checkpoint"),
+    Step("train_cr3bp_fraction", TrainSettings, _settings, run_train,
+         lambda cfg: [{"fraction": layout.fraction_label(f)} for f in cfg.cr3bp_models.data_fractions]
+         if cfg.cr3bp_models.enabled else [],
+         lambda w: {"model": layout.CR3BP_FRACTION_MODEL.format_map(w)},
+         description="a GMM-CVAE on a seeded fraction of the rows of every training α (Fig. 18)"),
+    Step("train_cr3bp_replicate", TrainSettings, _settings, run_train,
+         lambda cfg: [{"mseed": str(s), "model": m} for s in cfg.cr3bp_models.extra_seeds for m in replicate_models_needed(cfg)],
+         lambda w: {"model": layout.CR3BP_REPLICATE_MODEL.format_map(w)},
+         description="one model of an extra training seed (the ablation's replicates)"),
+)

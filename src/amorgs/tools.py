@@ -1,0 +1,240 @@
+"""The ``amorgs`` tools around the workflow (the workflow's own steps are :mod:`amorgs.steps`).
+
+``library-export`` (check finished library-config shards and consolidate them into ``data/library``),
+``library-grow`` (batches of library generation, each exported), ``models-export`` (ship a run's checkpoints),
+``design`` (N good transfers at one α), ``boundary-conditions`` (recompute or check the resource), ``ui``
+(the MLflow UI on ``results/mlflow``), ``check-outputs`` (every output a config promises exists, is
+non-empty and is tracked) and ``config-schema`` (the JSON Schema generated from the config model).  Heavy
+imports happen inside the command that needs them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+
+from amorgs.config import SCHEMA_PATH
+from amorgs.problems import PROBLEMS
+
+#: One example per tool, shown in its ``--help`` epilog.
+EXAMPLES = {
+    "library-export": "amorgs library-export --solutions-dir results/library-grow/results/cr3bp/solutions "
+    "--library-dir data/library",
+    "models-export": "amorgs models-export --models-dir results/cr3bp/models --dest data/models/cr3bp",
+    "boundary-conditions": "amorgs boundary-conditions --check     # recompute and compare with the stored resource",
+    "ui": "amorgs ui --port 5000     # then browse http://127.0.0.1:5000",
+    "check-outputs": "amorgs check-outputs --config config/smoke.yaml   # exit 0: complete; 1: missing or broken;\n"
+    "                                                    # 3: complete but untracked in MLflow",
+    "config-schema": "amorgs config-schema --write     # after changing src/amorgs/config.py",
+}
+
+
+def cmd_library_export(args: argparse.Namespace) -> None:
+    from amorgs.data.library import export_library
+
+    summary = export_library(args.solutions_dir, args.library_dir, args.problem, args.config)
+    print(
+        f"{args.library_dir}/{args.problem}: {summary['files_added']} new file(s), {summary['rows_added']} new rows; "
+        f"library now {summary['shards']} shards in {summary['files']} files, {summary['rows']} solves "
+        f"({summary['converged']} converged, {summary['cpu_hours']:.2f} CPU-hours, "
+        f"{summary['bytes_per_row']:.0f} bytes per solve)"
+    )
+
+
+def cmd_models_export(args: argparse.Namespace) -> None:
+    from amorgs.models.shipped import export_models
+
+    manifest = export_models(args.models_dir, args.dest, args.config, args.library_dir)
+    size = sum(f["bytes"] for f in manifest["files"])
+    print(f"{args.dest}: {len(manifest['files'])} checkpoints ({size / 1e6:.2f} MB), trained on a library of "
+          f"{manifest['library_rows']} solves; manifest {args.dest}/provenance.json")
+
+
+def cmd_library_grow(args: argparse.Namespace) -> None:
+    from amorgs.data.library_grow import grow
+
+    grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice)
+
+
+def cmd_boundary_conditions(args: argparse.Namespace) -> None:
+    from amorgs.problems.cr3bp import boundary
+
+    if not args.check:
+        boundary.write_boundary_conditions(args.output)
+        print(f"{args.output or boundary.resource_path()}: written")
+        return
+    stored = boundary.load_boundary_conditions(args.output)
+    bad = _compare(stored, boundary.compute_boundary_conditions(), "", rel_tol=args.rel_tol)
+    where = args.output or boundary.resource_path()
+    if bad:
+        raise SystemExit(f"{where} differs from a fresh computation:\n  " + "\n  ".join(bad))
+    print(f"{where}: matches a fresh computation (relative tolerance {args.rel_tol:g})")
+
+
+def _compare(stored: object, fresh: object, path: str, rel_tol: float) -> list[str]:
+    """Differences between two JSON trees: numbers compared to ``rel_tol``, everything else exactly."""
+    if isinstance(stored, dict) and isinstance(fresh, dict):
+        keys = sorted(set(stored) | set(fresh))
+        return [d for k in keys for d in _compare(stored.get(k), fresh.get(k), f"{path}.{k}".lstrip("."), rel_tol)]
+    if isinstance(stored, list) and isinstance(fresh, list) and len(stored) == len(fresh):
+        return [d for i, (a, b) in enumerate(zip(stored, fresh)) for d in _compare(a, b, f"{path}[{i}]", rel_tol)]
+    if isinstance(stored, (int, float)) and isinstance(fresh, (int, float)) and not isinstance(stored, bool):
+        return [] if math.isclose(stored, fresh, rel_tol=rel_tol, abs_tol=rel_tol) else [f"{path}: {stored} vs {fresh}"]
+    return [] if stored == fresh else [f"{path}: {stored!r} vs {fresh!r}"]
+
+
+def cmd_design(args: argparse.Namespace) -> None:
+    from amorgs.design import DesignRequest, run_design
+
+    request = DesignRequest(
+        alpha=args.alpha, n=args.n, sampler=args.sampler, beta_kg=args.beta, eta=args.eta, seed=args.seed,
+        workers=args.workers, round_size=args.round_size, max_starts=args.max_starts, max_cpu_s=args.max_cpu_s,
+        library_dir=args.library_dir, models_dir=args.models_dir, config=args.config,
+    )
+    result, paths = run_design(request, args.output, track=not args.no_mlflow, store_dir=args.mlflow_dir,
+                               progress=not args.quiet)
+    out = paths["reports"][0].parent
+    print(f"{out}: {len(result.selected)} of {args.n} solutions (α = {args.alpha:g} N, m_f ≥ {args.beta:g} kg, "
+          f"η = {args.eta:g}) from {result.starts} starts, {result.cpu_s:.0f} CPU s, {result.wall_s:.0f} s wall")
+    if result.found < args.n:
+        print(f"amorgs design: only {result.found} of {args.n} found before the budget ran out "
+              f"({result.stop_reason}); raise --max-starts / --max-cpu-s or lower -n", file=sys.stderr)
+        raise SystemExit(3)
+
+
+def cmd_ui(args: argparse.Namespace) -> None:
+    from amorgs import tracking
+
+    if not (tracking.STORE_DIR / tracking.DB_NAME).exists():
+        raise SystemExit(f"no MLflow store at {tracking.STORE_DIR / tracking.DB_NAME}: run the workflow first")
+    cmd = tracking.ui_command(host=args.host, port=args.port)
+    print(" ".join(cmd), flush=True)
+    os.execv(cmd[0], cmd)
+
+
+def cmd_check_outputs(args: argparse.Namespace) -> None:
+    from amorgs.checks import UNTRACKED, check_outputs
+    from amorgs.config import load_config
+
+    problems = check_outputs(load_config(args.config), tracked=not args.no_mlflow)
+    if problems == [UNTRACKED]:  # every file is fine; only the MLflow history is missing
+        print(f"{args.config}: every expected output is present and non-empty, but untracked\n  {UNTRACKED}", file=sys.stderr)
+        raise SystemExit(3)
+    if problems:
+        raise SystemExit("missing or empty outputs:\n  " + "\n  ".join(problems))
+    print(f"{args.config}: every expected output is present, non-empty and tracked")
+
+
+def cmd_config_schema(args: argparse.Namespace) -> None:
+    from amorgs.config import schema_text
+
+    text = schema_text()
+    if args.check:
+        if not SCHEMA_PATH.is_file() or SCHEMA_PATH.read_text() != text:
+            raise SystemExit(f"{SCHEMA_PATH} is not the schema generated from src/amorgs/config.py; "
+                             "run `amorgs config-schema --write`")
+        print(f"{SCHEMA_PATH}: current")
+    elif args.write:
+        from amorgs.data.io import atomic_path
+
+        with atomic_path(SCHEMA_PATH) as tmp:
+            tmp.write_text(text)
+        print(f"{SCHEMA_PATH}: written")
+    else:
+        print(text, end="")
+
+
+def add_tools(sub: argparse._SubParsersAction) -> None:
+    """Add every tool's subcommand to ``sub``."""
+    p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library")
+    p.add_argument("--problem", default="cr3bp", choices=PROBLEMS, help="problem whose shards are exported")
+    p.add_argument("--solutions-dir", default="results/cr3bp/solutions", help="where the generate rule wrote the shards")
+    p.add_argument("--library-dir", default="data/library", help="library root (data/library)")
+    p.add_argument("--config", default="config/library.yaml", help="the config that generated them (provenance)")
+    p.set_defaults(func=cmd_library_export)
+
+    p = sub.add_parser("models-export", help="ship a workflow run's CR3BP checkpoints in the repository (for design)")
+    p.add_argument("--models-dir", default="results/cr3bp/models", help="the train step's checkpoints")
+    p.add_argument("--dest", default="data/models/cr3bp", help="where the shipped checkpoints live")
+    p.add_argument("--config", default="config/default.yaml", help="the config of the run that trained them")
+    p.add_argument("--library-dir", default="data/library", help="the library they were trained on (its hash is recorded)")
+    p.set_defaults(func=cmd_models_export)
+
+    p = sub.add_parser(
+        "library-grow",
+        help="grow the library: generate the next batch of library-config shards, export, repeat",
+        epilog="example: nice -n 19 amorgs library-grow --batches 20 --hours 3   # then commit data/library",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--config", default="config/library.yaml", help="the library config (seed, α, starts per shard)")
+    p.add_argument("--problem", default="cr3bp", choices=("cr3bp",), help="problem whose library grows")
+    p.add_argument("--library-dir", default="data/library", help="library root")
+    p.add_argument("--workdir", default="results/library-grow", help="Snakemake working directory of the batches")
+    p.add_argument("--cores", type=int, default=2, help="cores Snakemake may use")
+    p.add_argument("--batches", type=int, default=1, help="batches to run (each: every α × generate.shards shards)")
+    p.add_argument("--hours", type=float, default=None, help="start no new batch after this many hours")
+    p.add_argument("--nice", type=int, default=19, help="niceness added before starting (0: none)")
+    p.set_defaults(func=cmd_library_grow)
+
+    p = sub.add_parser("boundary-conditions", help="recompute (or --check) the CR3BP boundary conditions")
+    p.add_argument("--output", help="the resource file (default: resources/boundary_conditions.json)")
+    p.add_argument("--check", action="store_true", help="compare the stored file with a fresh computation")
+    p.add_argument("--rel-tol", type=float, default=1e-9, help="--check: relative tolerance on numbers")
+    p.set_defaults(func=cmd_boundary_conditions)
+
+    p = sub.add_parser(
+        "design",
+        help="N good, verified, η-diverse CR3BP transfers at one α, exported (tables, CSV, CCSDS OEM, plot)",
+        description="Solve warm starts at one α in rounds until N high-quality (converged and verified by\n"
+                    "independent re-propagation, m_f ≥ β) and η-diverse (paper Eq. 12) solutions are found or a\n"
+                    "budget runs out; write them with dense trajectories in the rotating frame and an Earth-centred\n"
+                    "inertial frame (epoch 2030-01-01T00:00:00 TDB at departure) as CSV, CCSDS OEM and a 3-D plot.",
+        epilog="example:\n  amorgs design --alpha 0.42 -n 20            # → results/design/alpha=0.420/\n"
+               "  amorgs design --alpha 0.42 -n 5 --seed 7 --max-starts 64 --output my-design\n"
+               "exit status: 0 all N found, 3 fewer found before the budget ran out (files still written)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--alpha", required=True, type=float, help="maximum thrust α in N, within [0.1, 1.0]")
+    p.add_argument("-n", "--n", dest="n", required=True, type=int, help="number of solutions wanted (≥ 1)")
+    p.add_argument("--sampler", default="nearest_alpha",
+                   help="warm-start sampler (default nearest_alpha: library solutions of the nearest training α); "
+                        "also uniform, nearest_alpha_perturbed, and the learned amorgs, cvae_uniform_control, "
+                        "uniform_lstm_control, vanilla_cvae, gmm_lstm (need --models-dir)")
+    p.add_argument("--beta", type=float, default=415.0, help="β: minimum final fuel mass m_f in kg (default 415)")
+    p.add_argument("--eta", type=float, default=0.02,
+                   help="η of Eq. 12, dimensionless: solutions must differ by more than η in (τ_s/40, τ_i/15, τ_f/15) "
+                        "(default 0.02 ≈ 0.8 TU of τ_s or 0.3 TU of τ_i, τ_f)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the warm starts; same seed, same result (default 0)")
+    p.add_argument("--workers", type=int, default=2, help="solver processes (default 2)")
+    p.add_argument("--round-size", type=int, default=16,
+                   help="starts solved per round; the stop criteria are checked between rounds (default 16)")
+    p.add_argument("--max-starts", type=int, default=400, help="budget: at most this many solves (default 400)")
+    p.add_argument("--max-cpu-s", type=float, default=3600.0,
+                   help="budget: start no new round after this many CPU seconds, workers included (default 3600)")
+    p.add_argument("--output", default=None, help="output folder (default results/design/alpha=<label>/)")
+    p.add_argument("--library-dir", default="data/library", help="the solution library shipped in the repository")
+    p.add_argument("--models-dir", default="data/models/cr3bp", help="checkpoints of the learned samplers")
+    p.add_argument("--config", default="config/default.yaml",
+                   help="config giving the solver options (problems.cr3bp.solver), training α and filter β")
+    p.add_argument("--mlflow-dir", default="results/mlflow",
+                   help="MLflow store of the design run (default: the workflow's store, so `amorgs ui` shows it)")
+    p.add_argument("--no-mlflow", action="store_true", help="do not mirror the call to MLflow")
+    p.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
+    p.set_defaults(func=cmd_design)
+
+    p = sub.add_parser("ui", help="open the MLflow UI on results/mlflow")
+    p.add_argument("--host", default="127.0.0.1", help="address the UI listens on")
+    p.add_argument("--port", type=int, default=5000, help="port the UI listens on")
+    p.set_defaults(func=cmd_ui)
+
+    p = sub.add_parser("check-outputs", help="check that every output of a config exists, is non-empty and tracked")
+    p.add_argument("--config", required=True, help="config file, e.g. config/smoke.yaml")
+    p.add_argument("--no-mlflow", action="store_true", help="skip the MLflow checks")
+    p.set_defaults(func=cmd_check_outputs)
+
+    p = sub.add_parser("config-schema", help="print (or --write, or --check) the JSON Schema generated from the config model")
+    p.add_argument("--write", action="store_true", help=f"write it to {SCHEMA_PATH}")
+    p.add_argument("--check", action="store_true", help=f"exit 1 if {SCHEMA_PATH} is not the generated schema")
+    p.set_defaults(func=cmd_config_schema)

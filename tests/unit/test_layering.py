@@ -1,0 +1,119 @@
+"""Module layering of the package, checked statically: ``analysis``/``ablation`` return data, ``figures`` draws
+it, a step calls both, and no module imports upward.
+
+Every module under ``src/amorgs`` is parsed with :mod:`ast`; every ``import``/``from … import`` statement counts,
+also those inside functions and under ``if TYPE_CHECKING:`` (a layer should not need a type from above it
+either).  ``from a.b import c`` counts as importing ``a.b`` and ``a.b.c`` (``c`` may be a submodule).
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+PACKAGE = SRC / "amorgs"
+
+#: (layer prefix, forbidden import prefixes, why)
+RULES = (
+    ("amorgs.figures", ("amorgs.ablation.statistics", "amorgs.ablation.report", "amorgs.models", "torch",
+                        "amorgs.analysis.structure_report", "amorgs.steps", "amorgs.cli"),
+     "figures draw data handed to them: no statistics, no models, no torch"),
+    *((layer, ("matplotlib", "mpl_toolkits", "amorgs.figures"), "data layers do not draw")
+      for layer in ("amorgs.analysis", "amorgs.data", "amorgs.ablation", "amorgs.models", "amorgs.problems",
+                    "amorgs.solvers")),
+)
+#: Only the top layer may import the command line and the workflow steps: the command line itself, the steps,
+#: ``python -m amorgs``, and ``amorgs check-outputs`` (:mod:`amorgs.checks`), which verifies what the steps declare.
+TOP = ("amorgs.cli", "amorgs.steps")
+TOP_IMPORTERS = ("amorgs.cli", "amorgs.steps", "amorgs.__main__", "amorgs.checks")
+
+
+def _within(name: str, prefix: str) -> bool:
+    return name == prefix or name.startswith(prefix + ".")
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(SRC).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def imported_modules(source: str, module: str, is_package: bool = False) -> set[str]:
+    """Every module named by an import statement anywhere in ``source`` (module ``module``)."""
+    package = module if is_package else module.rpartition(".")[0]
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:  # relative: resolve against the importing package
+                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1])
+                base = f"{base}.{node.module}" if node.module else base
+            else:
+                base = node.module or ""
+            names.add(base)
+            names.update(f"{base}.{alias.name}" for alias in node.names if alias.name != "*")
+    return names
+
+
+def violations(modules: dict[str, set[str]]) -> list[str]:
+    """Every import in ``modules`` (module name → imported names) that breaks a rule, as readable lines."""
+    found = []
+    for module, names in sorted(modules.items()):
+        for layer, forbidden, why in RULES:
+            if _within(module, layer):
+                found += [f"{module} imports {n} ({why})" for n in sorted(names)
+                          if any(_within(n, f) for f in forbidden)]
+        if not any(_within(module, m) for m in TOP_IMPORTERS):
+            found += [f"{module} imports {n} (only the CLI and the steps import the CLI and the steps)"
+                      for n in sorted(names) if any(_within(n, t) for t in TOP)]
+    return found
+
+
+def package_imports() -> dict[str, set[str]]:
+    return {module_name(p): imported_modules(p.read_text(), module_name(p), p.name == "__init__.py")
+            for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def test_no_module_imports_upward():
+    modules = package_imports()
+    assert "amorgs.figures.ablation" in modules and "amorgs.analysis.structure_report" in modules
+    assert violations(modules) == []
+
+
+@pytest.mark.parametrize("module, source, expected", [
+    ("amorgs.figures.ablation", "def f():\n    from amorgs.ablation.statistics import high_quality\n",
+     "amorgs.ablation.statistics"),
+    ("amorgs.figures.structure", "from amorgs.analysis import structure_report\n", "amorgs.analysis.structure_report"),
+    ("amorgs.figures.prediction", "import torch.nn\n", "torch.nn"),
+    ("amorgs.analysis.structure_report", "from amorgs.figures import structure as figs\n", "amorgs.figures"),
+    ("amorgs.ablation.report", "def draw():\n    import matplotlib.pyplot as plt\n", "matplotlib.pyplot"),
+    ("amorgs.data.io", "from ..figures.dejong import fig02_foxholes\n", "amorgs.figures.dejong"),
+    ("amorgs.layout", "from amorgs.steps import targets\n", "amorgs.steps"),
+])
+def test_the_check_catches_an_upward_import(module, source, expected):
+    """The checker itself: an upward import, top-level or inside a function, absolute or relative, is reported."""
+    found = violations({module: imported_modules(source, module)})
+    assert any(line.startswith(f"{module} imports {expected} ") for line in found), found
+
+
+def test_allowed_imports_pass_the_check():
+    figures = "from amorgs.ablation.arms import SAMPLER_NAMES\nfrom amorgs.alphas import rows_at\n"
+    step = "from amorgs.figures.structure import structure_figures\n"
+    modules = {"amorgs.figures.ablation": imported_modules(figures, "amorgs.figures.ablation"),
+               "amorgs.steps.analyze": imported_modules(step, "amorgs.steps.analyze")}
+    assert violations(modules) == []
+
+
+@pytest.mark.parametrize("module", ["amorgs.figures.ablation", "amorgs.figures.structure",
+                                    "amorgs.figures.prediction", "amorgs.figures.dejong"])
+def test_importing_a_figures_module_does_not_load_torch(module):
+    code = f"import sys, {module}; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
