@@ -19,8 +19,9 @@ and outputs in the JSON are those Snakemake resolved, and they tag the job's MLf
 The rule's name is the one thing a rule writes itself (``params: job=step_job("<rule>")``: Snakemake gives a
 params function no rule name); :func:`check_rules` checks it against Snakemake's own name at parse time.
 
-Adding a step: write its module under ``amorgs/steps/`` with a ``STEPS`` tuple, list the module in
-:data:`_MODULES`, and add one rule of the same name (``output: **step_outputs(...)``,
+Adding a step: add it to the ``STEPS`` of its stage's module under ``amorgs/steps/`` (a new module needs
+``STEPS`` and ``STAGE``, its place in the workflow's order; it is found by itself), and add one rule of the
+same name (``output: **step_outputs(...)``,
 ``params: job=step_job(...)``, ``shell: STEP``).
 """
 
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -38,8 +40,6 @@ from amorgs.errors import InputError
 Wildcards = Mapping[str, str]
 Outputs = dict[str, "str | list[str]"]
 
-#: The stage modules, in workflow order; each defines ``STEPS``.
-_MODULES = ("generate", "filter", "dejong", "analyze", "train", "predict", "ablation")
 
 
 @dataclass(frozen=True)
@@ -84,9 +84,11 @@ def once_if(section: str) -> Callable[[Config], list[dict[str, str]]]:
 
 
 def _load() -> dict[str, Step]:
+    """Every ``STEPS`` of the modules of this package, ordered by their ``STAGE`` (the workflow's order)."""
+    modules = [importlib.import_module(f"{__name__}.{m.name}") for m in pkgutil.iter_modules(__path__)]
     steps: dict[str, Step] = {}
-    for name in _MODULES:
-        for step in importlib.import_module(f"amorgs.steps.{name}").STEPS:
+    for module in sorted((m for m in modules if hasattr(m, "STEPS")), key=lambda m: m.STAGE):
+        for step in module.STEPS:
             if step.rule in steps:
                 raise RuntimeError(f"step {step.rule!r} is defined twice")
             steps[step.rule] = step

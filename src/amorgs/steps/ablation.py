@@ -158,6 +158,7 @@ def run_report(job: Job, run) -> None:
     print(f"{job.output['summary']}: {len(report.metrics)} metrics over {len(cells)} cells")
 
 
+STAGE = 7
 STEPS = (
     Step("ablation_cell", CellSettings, _cell_settings, run_cell, cell_jobs,
          lambda w: {"table": layout.ABLATION_CELL.format_map(w)},

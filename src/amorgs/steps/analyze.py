@@ -47,6 +47,7 @@ def run_analyze(job: Job, run) -> None:
     print(f"{job.output['metrics']}: {len(result.metrics)} metrics, {len(result.tables)} tables")
 
 
+STAGE = 4
 STEPS = (
     Step("analyze_cr3bp", AnalyzeSettings, _settings, run_analyze, once_if("cr3bp_analysis"),
          lambda w: {"metrics": layout.CR3BP_ANALYSIS_METRICS,

@@ -141,6 +141,7 @@ def run_fig16(job: Job, run) -> None:
     print(f"{job.output['figure']}: written")
 
 
+STAGE = 3
 STEPS = (
     Step("train_dejong_cvae", DejongTrainSettings, _train_settings, run_train, once_if("dejong_cvae"),
          lambda w: {"model": layout.DEJONG_MODEL},

@@ -47,6 +47,7 @@ def run_filter(job: Job, run) -> None:
     print(f"{job.output['table']}: {len(hq)} high-quality of {len(df)} solves")
 
 
+STAGE = 2
 STEPS = (
     Step("filter", FilterSettings, filter_settings, run_filter,
          lambda cfg: [{"problem": name} for name in cfg.problems.enabled()],

@@ -117,6 +117,7 @@ def run_merge(job: Job, run) -> None:
     print(f"{output}: {len(df)} rows from {len(fresh_paths)} fresh shard(s) and {len(library_paths)} library file(s)")
 
 
+STAGE = 1
 STEPS = (
     Step("generate", GenerateSettings, generate_settings, run_generate, generate_jobs,
          lambda w: {"table": layout.SHARD.format_map(w)},

@@ -94,6 +94,7 @@ def run_predict(job: Job, run) -> None:
     print(f"{job.output['samples']}: {len(samples)} samples at {len(s.test_alphas)} test α")
 
 
+STAGE = 6
 STEPS = (
     Step("predict_cr3bp", PredictSettings, _settings, run_predict, once_if("cr3bp_models"),
          lambda w: {"samples": layout.CR3BP_SAMPLES, "metrics": layout.CR3BP_PREDICTION_METRICS,

@@ -70,6 +70,7 @@ def replicate_models_needed(cfg: Config) -> list[str]:
     return sorted({m for s in cfg.ablation.samplers for m in NEEDS_MODELS[s]}) if cfg.ablation.enabled else []
 
 
+STAGE = 5
 STEPS = (
     Step("train_cr3bp", TrainSettings, _settings, run_train,
          lambda cfg: [{"model": m} for m in CR3BP_MODELS] if cfg.cr3bp_models.enabled else [],

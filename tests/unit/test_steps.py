@@ -1,0 +1,55 @@
+"""The step registry (amorgs.steps): one source for each job's settings, outputs and expected jobs."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from config_files import load
+
+from amorgs import steps
+from amorgs.errors import InputError
+
+
+def test_every_step_has_settings_for_every_job_of_every_shipped_config():
+    for name in ("smoke", "default", "study", "paper"):
+        cfg = load(name)
+        steps.check_settings(cfg)
+        jobs = steps.expected_jobs(cfg)
+        targets = steps.targets(cfg)
+        assert len(targets) == len(set(targets)), f"{name}: two jobs write one file"
+        assert {rule for rule, _ in jobs} <= set(steps.registry())
+
+
+def test_output_templates_keep_the_wildcards():
+    assert steps.output_templates("generate") == {"table": "results/{problem}/solutions/alpha={alpha}/shard-{shard}.parquet"}
+    assert steps.output_templates("ablation_cell_replicate")["table"].count("{") == 3
+
+
+def test_job_spec_round_trip_and_a_bad_job_is_one_clear_error():
+    cfg = load("smoke")
+    w = {"problem": "cr3bp", "alpha": "0.150", "shard": "0"}
+    spec = json.loads(steps.job_spec("generate", cfg, w, {}, {"table": "x.parquet"}, 2))
+    assert spec["rule"] == "generate" and spec["wildcards"] == w and spec["threads"] == 2
+    assert spec["settings"]["solver"]["max_iter"] == cfg.problems.cr3bp.solver.max_iter
+    assert spec["settings"]["alpha"] == 0.15
+    with pytest.raises(InputError, match="not JSON"):
+        steps.run_job("{")
+    with pytest.raises(InputError, match="lacks"):
+        steps.run_job(json.dumps({"rule": "generate"}))
+    with pytest.raises(InputError, match="no workflow step 'nope'"):
+        steps.run_job(json.dumps({**spec, "rule": "nope"}))
+
+
+def test_check_rules_catches_a_rule_handing_over_another_name_and_a_step_without_rule():
+    def job():
+        pass
+
+    job.step = "filter"
+    rules = {name: None for name in steps.registry()}
+    steps.check_rules({**rules, "all": None})
+    with pytest.raises(RuntimeError, match=r"rule merge hands its job to step 'filter'"):
+        steps.check_rules({**rules, "merge": job})
+    del rules["ablation_report"]
+    with pytest.raises(RuntimeError, match=r"steps without a rule of their name: \['ablation_report'\]"):
+        steps.check_rules(rules)
