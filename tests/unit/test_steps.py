@@ -53,3 +53,20 @@ def test_check_rules_catches_a_rule_handing_over_another_name_and_a_step_without
     del rules["ablation_report"]
     with pytest.raises(RuntimeError, match=r"steps without a rule of their name: \['ablation_report'\]"):
         steps.check_rules(rules)
+
+
+def test_snakemake_wildcards_give_the_replicate_its_own_seed():
+    """Snakemake hands params functions a Wildcards object (a list subclass): the settings must see its keys."""
+    import snakemake.api  # noqa: F401  (import order of snakemake's own modules)
+    from snakemake.iocontainers import Wildcards
+
+    cfg = load("study")
+    cell = {"alpha": "0.150", "sampler": "amorgs"}
+    main = json.loads(steps.job_spec("ablation_cell", cfg, Wildcards(fromdict=cell), {}, {}, 1))["settings"]
+    rep = json.loads(steps.job_spec("ablation_cell_replicate", cfg, Wildcards(fromdict={**cell, "mseed": "12"}),
+                                    {}, {}, 1))["settings"]
+    assert rep["model_seed"] == 12 and main["model_seed"] == cfg.cr3bp_models.seed
+    assert rep["seed"] != main["seed"]
+    train = json.loads(steps.job_spec("train_cr3bp_replicate", cfg, Wildcards(fromdict={"mseed": "13", "model": "lstm"}),
+                                      {}, {}, 1))["settings"]
+    assert train["seed"] == 13 and train["model"] == "lstm"

@@ -184,10 +184,11 @@ def output_templates(rule: str) -> Outputs:
 def job_spec(rule: str, cfg: Config, wildcards: Wildcards, input: Mapping, output: Mapping, threads: int) -> str:
     """The JSON a rule hands to ``amorgs step`` (Snakemake's named inputs and outputs, the step's settings)."""
     step = registry()[rule]
+    wildcards = dict(wildcards.items())  # Snakemake's Wildcards is a list: `"key" in` it tests the values
     return json.dumps(
         {
             "rule": rule,
-            "wildcards": dict(wildcards),
+            "wildcards": wildcards,
             "input": {k: (v if isinstance(v, str) else list(v)) for k, v in input.items()},
             "output": {k: (v if isinstance(v, str) else list(v)) for k, v in output.items()},
             "threads": int(threads),
