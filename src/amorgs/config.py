@@ -236,7 +236,8 @@ class Ablation(Section):
     sampler, model seed) one job solving ``n_starts`` guesses with ``workers`` processes and the CR3BP solver
     options; ``perturbation_scale`` is σ of nearest_alpha_perturbed (box-normalised), ``gmm_components`` the
     mixture size of gmm_lstm per training α, ``iteration_caps`` the Fig. 22 caps fixed before the solves,
-    ``beta_sweep_kg`` extra β (kg) of the rate sweep, ``n_boot`` bootstrap resamples."""
+    ``beta_sweep_kg`` extra β (kg) of the rate sweep, ``n_boot`` bootstrap resamples, ``break_even_solutions``
+    the high-quality solutions wanted per new α of the break-even table (issue 11 §5)."""
 
     enabled: Flag
     samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)]  # type: ignore[valid-type]
@@ -250,8 +251,10 @@ class Ablation(Section):
     iteration_caps: tuple[PositiveInt, ...]
     beta_sweep_kg: tuple[float, ...]
     n_boot: PositiveInt
+    break_even_solutions: tuple[PositiveInt, ...] = Field(
+        description="high-quality solutions wanted per new α in the break-even table (none: no table)")
 
-    _unique_lists = field_validator("samplers", "iteration_caps", "beta_sweep_kg")(_unique)
+    _unique_lists = field_validator("samplers", "iteration_caps", "beta_sweep_kg", "break_even_solutions")(_unique)
 
 
 class Config(Section):

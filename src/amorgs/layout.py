@@ -47,7 +47,8 @@ ABLATION_FIGURES = (
     "fig22_iteration_capped", "ablation_speedups", "ablation_beta_sweep", "ablation_anytime",
 )
 #: The issue-11 statistics tables, each written as <name>.csv and <name>.md (anytime: CSV only).
-ABLATION_STAT_TABLES = ("ablation_rates", "ablation_beta_sweep", "ablation_ert", "ablation_iteration_capped")
+ABLATION_STAT_TABLES = ("ablation_rates", "ablation_beta_sweep", "ablation_ert", "ablation_iteration_capped",
+                        "ablation_break_even")
 ABLATION_TABLES = (
     "table6.csv", "table6.md", "ablation_capped.csv", "ablation_coverage.csv",
     *(f"{n}.{ext}" for n in ABLATION_STAT_TABLES for ext in ("csv", "md")), "ablation_anytime.csv",
@@ -57,3 +58,8 @@ ABLATION_TABLES = (
 def fraction_label(fraction: float) -> str:
     """The string form of a data fraction in paths and wildcards (``0.1``, ``0.5``)."""
     return f"{fraction:g}"
+
+
+def training_report(checkpoint: str) -> str:
+    """The training report (rows, epochs, CPU seconds) written beside a checkpoint ``<name>.pt``."""
+    return checkpoint.removesuffix(".pt") + ".training.json"

@@ -130,8 +130,21 @@ def test_ablation_report_step_writes_every_declared_output(tmp_path, monkeypatch
     truth = pd.concat(cells)[lambda d: d["converged"]]
     truth.to_parquet(tmp_path / "hq.parquet")
     t = "results/tables"
-    steps.run_step("ablation_report", cfg, {}, {"cells": paths, "high_quality": str(tmp_path / "hq.parquet")},
+    # the data the arms draw on (solves at the training α 0.7–0.9 count, the test α 0.15 does not) and the
+    # training reports of the main seed's models
+    pd.DataFrame({"alpha": [0.7, 0.8, 0.15], "cpu_s": [1000.0, 800.0, 5000.0]}).to_parquet("a.parquet")
+    reports = []
+    for model, cpu in (("cvae_gmm", 100.0), ("lstm", 50.0), ("vanilla_cvae", 7.0)):
+        reports.append(f"{model}.training.json")
+        Path(reports[-1]).write_text(json.dumps({"model": model, "train_cpu_s": cpu}))
+    steps.run_step("ablation_report", cfg, {},
+                   {"cells": paths, "high_quality": str(tmp_path / "hq.parquet"), "alpha_tables": ["a.parquet"],
+                    "training_reports": reports},
                    steps.registry()["ablation_report"].outputs({}))
+    even = pd.read_csv(f"{t}/ablation_break_even.csv").set_index(["alpha", "sampler"])
+    assert even.loc[(0.15, "amorgs"), "upfront_cpu_h"] == pytest.approx((1800 + 150) / 3600)
+    assert even.loc[(0.15, "nearest_alpha"), "upfront_cpu_h"] == pytest.approx(1800 / 3600)
+    assert set(even["solutions_wanted"]) == set(cfg.ablation.break_even_solutions)
     for name in layout.ABLATION_TABLES:
         assert (tmp_path / t / name).stat().st_size > 0, name
     for name in layout.ABLATION_FIGURES:

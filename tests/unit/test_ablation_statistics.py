@@ -222,3 +222,21 @@ def test_fig22_iteration_capped_draws_when_no_ratio_is_defined():
     fig = fig22_iteration_capped(capped)
     fig.canvas.draw()
     assert fig.axes[0].get_xlim()[0] == pytest.approx(10 / 1.3)
+
+
+def test_break_even_is_upfront_over_the_saving_per_alpha():
+    from amorgs.ablation.statistics import break_even
+
+    # uniform: 600 iterations × 0.01 s for 1 HQ → 6 s per HQ; reuse: 40 iterations for 2 HQ → 0.2 s per HQ
+    df = pd.concat([arm("uniform", [100, 200, 300], [1, 0, 0]), arm("nearest_alpha", [10, 10, 20], [1, 1, 0]),
+                    arm("amorgs", [500, 500], [0, 0])])
+    upfront = {"nearest_alpha": 58.0, "amorgs": 1000.0}
+    t = break_even(df, 415.0, upfront, (10, 100), n_boot=200, seed=1).set_index(["sampler", "solutions_wanted"])
+    row = t.loc[("nearest_alpha", 10)]
+    assert row["saving_cpu_s_per_solution"] == pytest.approx(6.0 - 0.2)
+    assert row["break_even_new_alphas"] == pytest.approx(58.0 / (10 * 5.8))  # = 1 new α
+    assert t.loc[("nearest_alpha", 100), "break_even_new_alphas"] == pytest.approx(0.1)
+    assert row["ci95_low"] <= row["break_even_new_alphas"] <= row["ci95_high"]
+    assert t.loc[("amorgs", 10), "break_even_new_alphas"] == math.inf  # it found nothing: it never repays
+    assert "uniform" not in t.index.get_level_values(0)
+    assert t.loc[("nearest_alpha", 10), "upfront_cpu_h"] == pytest.approx(58.0 / 3600)

@@ -47,6 +47,8 @@ rule ablation_report:
         cells=steps.outputs_of("ablation_cell", CFG, "table")
         + steps.outputs_of("ablation_cell_replicate", CFG, "table"),
         high_quality=layout.HIGH_QUALITY.format(problem="cr3bp"),
+        alpha_tables=steps.outputs_of("merge", CFG, "table", problem="cr3bp"),
+        training_reports=steps.outputs_of("train_cr3bp", CFG, "report"),
     output:
         **step_outputs("ablation_report"),
     log:

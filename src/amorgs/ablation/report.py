@@ -20,6 +20,7 @@ import pandas as pd
 
 from amorgs.ablation.statistics import (
     anytime_curves,
+    break_even,
     capped_study,
     expected_running_time,
     high_quality,
@@ -43,6 +44,8 @@ def summarize(
     beta_sweep: tuple[float, ...] = (),
     iteration_caps: tuple[int, ...] = (),
     max_iter: int | None = None,
+    upfront_cpu_s: dict[str, float] | None = None,
+    break_even_solutions: tuple[int, ...] = (),
 ) -> AblationSummary:
     """Table 6, Fig. 22 capped study + search acceleration (bootstrap CI), hyperplane coverage, the data of
     Figs. 21–23; and (issue 11) rates with Wilson intervals and Fisher tests, the β sweep, expected running time
@@ -52,7 +55,9 @@ def summarize(
     solution set (all α; rows at the test α are the ground truth of Fig. 23 and of the coverage count);
     ``beta_kg`` (kg); ``beta_sweep`` (kg, β itself added), ``iteration_caps`` (fixed in config before the
     solves; none: the iteration-capped study is empty) and ``max_iter`` (the solver's cap, an upper bound for
-    them).  α are grouped by label (:mod:`amorgs.alphas`).
+    them); ``upfront_cpu_s`` (arm → CPU seconds spent before the first new α: data, training) and
+    ``break_even_solutions`` (high-quality solutions wanted per new α; none: no break-even table).  α are
+    grouped by label (:mod:`amorgs.alphas`).
     """
     mode_params = mode_params or ModeParams()
     cells = cells.assign(alpha=cells["alpha"].map(alpha_value))
@@ -85,6 +90,11 @@ def summarize(
     ert = expected_running_time(cells, beta_kg, n_boot=n_boot, seed=seed)
     capped_it = iteration_capped(cells, beta_kg, iteration_caps, max_iter) if iteration_caps else pd.DataFrame()
     curves = anytime_curves(cells, beta_kg)
+    even = (break_even(cells, beta_kg, upfront_cpu_s or {}, break_even_solutions, n_boot=n_boot, seed=seed)
+            if break_even_solutions else pd.DataFrame())
+    for r in even.itertuples(index=False):
+        metrics[metric_key("break_even_new_alphas", r.alpha, r.sampler, f"K_{r.solutions_wanted}")] = (
+            r.break_even_new_alphas)
     for r in sweep.itertuples(index=False):
         swept = () if r.beta_kg == beta_kg else (f"beta_{r.beta_kg:g}",)
         metrics[metric_key("rate_percent", r.alpha, r.sampler, *swept)] = r.percent
@@ -114,6 +124,7 @@ def summarize(
         "ert": ert,
         "iteration_capped": capped_it,
         "anytime": curves,
+        "break_even": even,
         "table6": t6,
         "capped": pd.concat(capped_tables, ignore_index=True) if capped_tables else pd.DataFrame(),
         "coverage": pd.concat(coverage_tables, ignore_index=True) if coverage_tables else pd.DataFrame(),
@@ -180,4 +191,6 @@ MARKDOWN_TITLES = {
     "beta_sweep": "High-quality rate vs β per arm (Wilson 95 %, one-sided Fisher p)",
     "ert": "Expected running time aRT = cost spent ÷ high-quality found; speed-up = aRT(uniform) ÷ aRT(arm), bootstrap 95 %",
     "iteration_capped": "Fig. 22 with a fixed iteration cap: % within cap, throughput, ratios to uniform",
+    "break_even": "Break-even: new α after which an arm's up-front CPU (data; training) is repaid by the CPU it "
+                  "saves over uniform, for K high-quality solutions per α (bootstrap 95 %)",
 }

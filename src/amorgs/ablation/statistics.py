@@ -269,6 +269,70 @@ def expected_running_time(
     return pd.DataFrame(rows)
 
 
+def break_even(
+    df: pd.DataFrame, beta_kg: float, upfront_cpu_s: dict[str, float], solutions: tuple[int, ...],
+    baseline: str = "uniform", n_boot: int = 2000, seed: int = 0,
+) -> pd.DataFrame:
+    """After how many new α does an arm's up-front CPU pay for itself (issue 11 §5)?
+
+    A designer who wants ``K`` high-quality solutions at a new α spends K·aRT(arm) CPU seconds with the arm
+    and K·aRT(baseline) with uniform multi-start (aRT in CPU seconds per high-quality solution, as in
+    :func:`expected_running_time`).  The arm's ``upfront_cpu_s`` (the data it draws on, and for the learned
+    arms the training of their models; 0 for the baseline) is repaid after
+    ``break_even_new_alphas = upfront ÷ (K · (aRT_baseline − aRT_arm))`` new α — ∞ when the arm saves
+    nothing.  The 95 % interval resamples the starts of both arms (seeded), as for the speed-ups; one row per
+    (α, arm other than the baseline, K).
+    """
+    rng = np.random.default_rng(seed)
+    rows = []
+    for alpha, ga in df.groupby("alpha", sort=True):
+        groups = ga.groupby("sampler").indices
+        if baseline not in groups:
+            continue
+        hq, cost = high_quality(ga, beta_kg).to_numpy(), solve_costs(ga, "cpu_s")
+        base = groups[baseline]
+        ib = rng.integers(0, len(base), size=(n_boot, len(base)))
+        boot_base = _boot_ert(cost[base], hq[base], ib)
+        for sampler, idx in sorted(groups.items()):
+            if sampler == baseline:
+                continue
+            ia = rng.integers(0, len(idx), size=(n_boot, len(idx)))
+            saving = _ert(cost[base], hq[base]) - _ert(cost[idx], hq[idx])
+            with np.errstate(invalid="ignore"):
+                boot_saving = boot_base - _boot_ert(cost[idx], hq[idx], ia)
+            boot_saving = boot_saving[~np.isnan(boot_saving)]  # ∞ − ∞: no information
+            upfront = float(upfront_cpu_s.get(sampler, 0.0))
+            for k in solutions:
+                row = {"alpha": alpha, "sampler": sampler, "n": len(idx), "n_baseline": len(base),
+                       "solutions_wanted": int(k), "upfront_cpu_h": upfront / 3600,
+                       "saving_cpu_s_per_solution": saving,
+                       "break_even_new_alphas": _alphas_to_repay(upfront, k, saving),
+                       "ci95_low": math.nan, "ci95_high": math.nan}
+                if boot_saving.size:
+                    n_star = np.array([_alphas_to_repay(upfront, k, v) for v in boot_saving])
+                    row["ci95_low"], row["ci95_high"] = (float(q) for q in np.quantile(n_star, [0.025, 0.975],
+                                                                                        method="inverted_cdf"))
+                rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _boot_ert(cost: np.ndarray, hq: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """aRT of each bootstrap resample (rows ``index``, one resample per row of it); ∞ where none is found."""
+    k, c = hq[index].sum(1), cost[index].sum(1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(k > 0, c / np.maximum(k, 1), np.inf)
+
+
+def _alphas_to_repay(upfront_cpu_s: float, solutions: int, saving_per_solution: float) -> float:
+    """New α needed before ``solutions`` per α, each saving ``saving_per_solution`` CPU s, repay the up-front
+    CPU (0 with nothing up front, ∞ without a saving)."""
+    if upfront_cpu_s <= 0:
+        return 0.0
+    if not saving_per_solution > 0:
+        return math.inf
+    return upfront_cpu_s / (solutions * saving_per_solution)
+
+
 def iteration_capped(
     df: pd.DataFrame, beta_kg: float, caps, max_iter: int | None = None, baseline: str = "uniform"
 ) -> pd.DataFrame:

@@ -23,9 +23,10 @@ from amorgs.data.io import atomic_path, write_json
 from amorgs.data.library import MANIFEST as LIBRARY_MANIFEST
 from amorgs.data.library import _git_commit, read_manifest, sha256_file
 from amorgs.errors import InputError
+from amorgs.models.names import CR3BP_MODELS
 
 MANIFEST = "provenance.json"
-CHECKPOINT_FILES = ("cvae_gmm.pt", "vanilla_cvae.pt", "lstm.pt")
+CHECKPOINT_FILES = tuple(f"{name}.pt" for name in CR3BP_MODELS)
 
 
 def export_models(models_dir: str | Path, dest: str | Path, config_file: str | Path,

@@ -106,7 +106,8 @@ def cell_models(sampler: str, model_template: str, wildcards: Wildcards) -> list
 
 class ReportSettings(Section):
     """β (kg) of a high-quality solution, the β sweep (kg), the Fig. 22 iteration caps fixed before the
-    solves (≤ ``max_iter``), and ``n_boot`` bootstrap resamples drawn with ``seed``."""
+    solves (≤ ``max_iter``), ``n_boot`` bootstrap resamples drawn with ``seed``, the high-quality solutions
+    wanted per new α of the break-even table, and the training α (whose solves are the arms' data)."""
 
     beta_kg: float
     beta_sweep_kg: tuple[float, ...]
@@ -114,13 +115,33 @@ class ReportSettings(Section):
     max_iter: int
     n_boot: int
     seed: int
+    break_even_solutions: tuple[int, ...]
+    train_alphas: tuple[float, ...]
 
 
 def _report_settings(cfg: Config, w: Wildcards) -> ReportSettings:
     a = cfg.ablation
     return ReportSettings(beta_kg=cfg.problems.cr3bp.filter.min_final_mass_kg, beta_sweep_kg=a.beta_sweep_kg,
                           iteration_caps=a.iteration_caps, max_iter=cfg.problems.cr3bp.solver.max_iter,
-                          n_boot=a.n_boot, seed=a.seed)
+                          n_boot=a.n_boot, seed=a.seed, break_even_solutions=a.break_even_solutions,
+                          train_alphas=cfg.problems.cr3bp.alphas.train_values())
+
+
+def upfront_cpu(alpha_tables: list[str], train_alphas, training_reports: list[str]) -> dict[str, float]:
+    """Arm → CPU seconds spent before the first new α: every solve at the training α (the data the reuse
+    baselines draw from and the models learn from), plus, for the learned arms, the training CPU of the
+    models they load (:data:`~amorgs.ablation.arms.NEEDS_MODELS`, the models of the main training seed).
+    Uniform multi-start needs nothing."""
+    import pandas as pd
+
+    from amorgs.alphas import rows_at_any
+    from amorgs.data.io import read_json
+
+    data_s = sum(float(rows_at_any(pd.read_parquet(p, columns=["alpha", "cpu_s"]), train_alphas)["cpu_s"].sum())
+                 for p in alpha_tables)
+    training = {r["model"]: float(r["train_cpu_s"]) for r in map(read_json, training_reports)}
+    return {s: 0.0 if s == "uniform" else data_s + sum(training.get(m, 0.0) for m in NEEDS_MODELS[s])
+            for s in SAMPLER_NAMES}
 
 
 def run_report(job: Job, run) -> None:
@@ -136,9 +157,11 @@ def run_report(job: Job, run) -> None:
     truth = pd.read_parquet(job.input["high_quality"])
     run.log_params({"cells": len(cells)})
     run.log_dataset(truth, job.input["high_quality"], "evaluation")  # the ground truth at the test α
+    upfront = upfront_cpu(job.input.get("alpha_tables", []), s.train_alphas, job.input.get("training_reports", []))
+    run.log_metrics({f"upfront_cpu_h/{arm}": v / 3600 for arm, v in upfront.items()})
     report = summarize(pd.concat([pd.read_parquet(p) for p in cells], ignore_index=True), truth, s.beta_kg,
                        n_boot=s.n_boot, seed=s.seed, beta_sweep=s.beta_sweep_kg, iteration_caps=s.iteration_caps,
-                       max_iter=s.max_iter)
+                       max_iter=s.max_iter, upfront_cpu_s=upfront, break_even_solutions=s.break_even_solutions)
     tables = report.tables
     by_name = {os.path.basename(p): p for p in job.output["tables"]}
     with atomic_path(by_name["table6.md"]) as tmp:

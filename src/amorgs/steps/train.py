@@ -4,6 +4,7 @@ models of every extra training seed (the ablation's replicates)."""
 
 from __future__ import annotations
 
+import time
 from typing import Annotated, Literal
 
 from pydantic import Field
@@ -32,11 +33,16 @@ def _settings(cfg: Config, w: Wildcards) -> TrainSettings:
                          fraction=float(w.get("fraction", 1.0)), train_alphas=cfg.problems.cr3bp.alphas.train_values())
 
 
+def _outputs(checkpoint: str) -> dict[str, str]:
+    """The checkpoint and its training report (rows, epochs, training CPU seconds)."""
+    return {"model": checkpoint, "report": layout.training_report(checkpoint)}
+
+
 def run_train(job: Job, run) -> None:
     import pandas as pd
     import torch
 
-    from amorgs.data.io import atomic_path
+    from amorgs.data.io import atomic_path, write_json
     from amorgs.models import cvae, lstm
     from amorgs.models.cr3bp_models import TRAINERS, subsample
     from amorgs.models.training import TrainConfig
@@ -56,9 +62,14 @@ def run_train(job: Job, run) -> None:
     run.log_dataset(hq, data, "training")
     run.start_model(s.model, {"preset": m.preset, "fraction": s.fraction, **vars(cfg)})
     torch.manual_seed(s.seed)
+    cpu0, wall0 = time.process_time(), time.perf_counter()
     model = TRAINERS[s.model](hq, m.preset, cfg, on_epoch=lambda epoch, metrics: run.log_metrics(metrics, step=epoch))
+    cpu_s, wall_s = time.process_time() - cpu0, time.perf_counter() - wall0
     with atomic_path(output) as tmp:
         (lstm.save if s.model == "lstm" else cvae.save)(model, tmp)
+    write_json({"model": s.model, "seed": s.seed, "fraction": s.fraction, "rows": len(hq), "epochs": m.epochs,
+                "threads": job.threads, "train_cpu_s": cpu_s, "train_wall_s": wall_s}, job.output["report"])
+    run.log_metrics({"train_cpu_s": cpu_s, "train_wall_s": wall_s})
     run.finish_model(output, step=m.epochs)  # the checkpoint as a logged model and under models/
     print(f"{output}: {s.model} trained {m.epochs} epochs on {len(hq)} solutions")
 
@@ -74,15 +85,15 @@ STAGE = 5
 STEPS = (
     Step("train_cr3bp", TrainSettings, _settings, run_train,
          lambda cfg: [{"model": m} for m in CR3BP_MODELS] if cfg.cr3bp_models.enabled else [],
-         lambda w: {"model": layout.CR3BP_MODEL.format_map(w)},
+         lambda w: _outputs(layout.CR3BP_MODEL.format_map(w)),
          description="one CR3BP model on the high-quality rows at the training α → checkpoint"),
     Step("train_cr3bp_fraction", TrainSettings, _settings, run_train,
          lambda cfg: [{"fraction": layout.fraction_label(f)} for f in cfg.cr3bp_models.data_fractions]
          if cfg.cr3bp_models.enabled else [],
-         lambda w: {"model": layout.CR3BP_FRACTION_MODEL.format_map(w)},
+         lambda w: _outputs(layout.CR3BP_FRACTION_MODEL.format_map(w)),
          description="a GMM-CVAE on a seeded fraction of the rows of every training α (Fig. 18)"),
     Step("train_cr3bp_replicate", TrainSettings, _settings, run_train,
          lambda cfg: [{"mseed": str(s), "model": m} for s in cfg.cr3bp_models.extra_seeds for m in replicate_models_needed(cfg)],
-         lambda w: {"model": layout.CR3BP_REPLICATE_MODEL.format_map(w)},
+         lambda w: _outputs(layout.CR3BP_REPLICATE_MODEL.format_map(w)),
          description="one model of an extra training seed (the ablation's replicates)"),
 )
