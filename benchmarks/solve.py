@@ -8,12 +8,18 @@ with the default solver options unless a variant is chosen, and prints and write
     python benchmarks/solve.py --variants --starts 12   # the comparison of transcription/solver variants
     python benchmarks/solve.py --scaling            # 1 → 2 worker processes
     python benchmarks/solve.py --compare --jobs 2   # previous default vs new default, same seed and starts
+    python benchmarks/solve.py --steps --alphas 0.5 1.0 --jobs 2 --max-wall-s 600   # default vs scale_down
 
 ``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
 the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
 abort must not shrink any band.  ``--jobs`` runs the cells (variant × α) side by side, each in its own
 single-worker process; ``--max-wall-s`` raises the wall-time safety net so that a loaded machine does not
 cut solves short (it is not part of the deterministic budget).
+
+``--steps`` compares the default with fewer RK8 steps at high α (``TranscriptionOptions.scale_down``: the
+law ceil(24·sqrt(0.3/α)) above α = 0.3 too, 14 steps per segment at α = 1.0, 19 at 0.5; it changes nothing
+below 0.3) and with scale_down plus fewer coast steps, on the same starts; it writes the same per-band table
+(default vs variant) and a paired bootstrap over starts (seeded) of the ratio of verified per core-hour.
 
 Throughput counts solve CPU time (``time.process_time`` inside the worker), not the one-off JIT build,
 which is reported separately.  The iteration-cap table is computed from the same solves: a start that
@@ -71,7 +77,18 @@ COMPARE = {k: v for k, v in VARIANTS.items() if k.startswith(("previous", "new")
 ABORT_PAIRS = {
     "+ stall abort": "previous default (-O2, RK8 24/seg ×√(0.3/α) below 0.3 + 320/coast, no abort)",
 }
+#: ``--steps``: the default vs fewer steps at high α (same starts).
+STEPS_DEFAULT = "default (24/seg ×√(0.3/α) below 0.3, 320/coast)"
+STEPS = {
+    STEPS_DEFAULT: IpoptOptions(),
+    "scale_down (⌈24·√(0.3/α)⌉/seg above 0.3 too)": _with(IpoptOptions(), transcription={"scale_down": True}),
+    "scale_down + 240/coast": _with(IpoptOptions(), transcription={"scale_down": True, "steps_per_coast": 240,
+                                                                   "coast_pieces": 8}),
+}
+#: ``--steps``: pairs (variant, reference) compared start by start per TOF band.
+STEPS_PAIRS = {k: STEPS_DEFAULT for k in STEPS if k != STEPS_DEFAULT}
 TOF_BAND_TU = 6.3
+BOOTSTRAP = 10_000
 
 
 def summarize(df: pd.DataFrame) -> dict:
@@ -117,32 +134,84 @@ def tof_band(tof: pd.Series) -> pd.Series:
     return k.map(lambda v: f"{(v - 0.5) * TOF_BAND_TU:.1f}–{(v + 0.5) * TOF_BAND_TU:.1f}" if np.isfinite(v) else "–")
 
 
-def abort_table(raw: pd.DataFrame) -> list[dict]:
-    """Start by start: which starts converge with and without the stall abort, per TOF band of the reference.
+def band_table(raw: pd.DataFrame, pairs: dict[str, str], ref_col: str, new_col: str,
+               with_variant: bool = False, with_moves: bool = False) -> list[dict]:
+    """Start by start: which starts converge in the reference and in the variant run, per TOF band.
 
-    ``kept`` = converged in both runs; ``lost`` = converged only without the abort (band of the lost
-    solution); ``gained`` = converged only with the abort (band of the new solution).
+    ``pairs`` maps variant → reference label.  Per band: converged in the reference (band of its solution),
+    converged in the variant (band of its solution); ``lost`` = converged only in the reference (band of the
+    lost solution); ``gained`` = converged only in the variant (band of the new solution); with
+    ``with_moves``, ``moved out`` / ``moved in`` = converged in both runs but to solutions in different bands
+    (counted in the reference's / the variant's band), so that variant = reference − lost + gained − moved
+    out + moved in in every band.
     """
     rows = []
-    for with_abort, without in ABORT_PAIRS.items():
+    for variant, reference in pairs.items():
         for alpha in sorted(raw.alpha.unique()):
-            a = raw[(raw.variant == with_abort) & (raw.alpha == alpha)].set_index("start")
-            b = raw[(raw.variant == without) & (raw.alpha == alpha)].set_index("start")
+            a = raw[(raw.variant == variant) & (raw.alpha == alpha)].set_index("start")
+            b = raw[(raw.variant == reference) & (raw.alpha == alpha)].set_index("start")
             if a.empty or b.empty:
                 continue
+            head = {"variant": variant} if with_variant else {}
             b_band = tof_band(b.tau_s + b.tau_i + b.tau_f)
             a_band = tof_band(a.tau_s + a.tau_i + a.tau_f)
             bands = sorted(set(b_band[b.converged]) | set(a_band[a.converged]), key=lambda t: float(t.split("–")[0]))
+            both = a.converged & b.converged
             for band in bands:
                 ref = b.converged & (b_band == band)
                 new = a.converged & (a_band == band)
-                rows.append({"alpha": alpha, "TOF band (TU)": band, "converged without abort": int(ref.sum()),
-                             "converged with abort": int(new.sum()), "lost": int((ref & ~a.converged).sum()),
-                             "gained": int((new & ~b.converged).sum())})
-            rows.append({"alpha": alpha, "TOF band (TU)": "all", "converged without abort": int(b.converged.sum()),
-                         "converged with abort": int(a.converged.sum()),
-                         "lost": int((b.converged & ~a.converged).sum()),
-                         "gained": int((a.converged & ~b.converged).sum())})
+                row = {**head, "alpha": alpha, "TOF band (TU)": band, ref_col: int(ref.sum()),
+                       new_col: int(new.sum()), "lost": int((ref & ~a.converged).sum()),
+                       "gained": int((new & ~b.converged).sum())}
+                if with_moves:
+                    row["moved out"] = int((ref & both & (a_band != band)).sum())
+                    row["moved in"] = int((new & both & (b_band != band)).sum())
+                rows.append(row)
+            row = {**head, "alpha": alpha, "TOF band (TU)": "all", ref_col: int(b.converged.sum()),
+                   new_col: int(a.converged.sum()), "lost": int((b.converged & ~a.converged).sum()),
+                   "gained": int((a.converged & ~b.converged).sum())}
+            if with_moves:
+                row["moved out"] = row["moved in"] = int((both & (a_band != b_band)).sum())
+            rows.append(row)
+    return rows
+
+
+def abort_table(raw: pd.DataFrame) -> list[dict]:
+    """:func:`band_table` of the stall abort (variant) against no abort (reference)."""
+    return band_table(raw, ABORT_PAIRS, "converged without abort", "converged with abort")
+
+
+def ratio_bootstrap(raw: pd.DataFrame, pairs: dict[str, str], seed: int, n_boot: int = BOOTSTRAP) -> list[dict]:
+    """Ratio (variant / reference) of verified per core-hour on the same starts, with a 95 % percentile
+    interval from a paired bootstrap over starts (the same resampled starts in both runs; ``seed``).
+
+    It covers the start-to-start variation only, not the run-to-run noise of CPU time on a shared machine
+    (see the ms/iter ratio, whose iterations are deterministic)."""
+    rows = []
+    for variant, reference in pairs.items():
+        for alpha in sorted(raw.alpha.unique()):
+            a = raw[(raw.variant == variant) & (raw.alpha == alpha)].set_index("start").sort_index()
+            b = raw[(raw.variant == reference) & (raw.alpha == alpha)].set_index("start").sort_index()
+            if a.empty or b.empty:
+                continue
+            common = a.index.intersection(b.index)
+            a, b = a.loc[common], b.loc[common]
+            ca, cb = a.converged.to_numpy(float), b.converged.to_numpy(float)
+            ta, tb = a.cpu_s.to_numpy(), b.cpu_s.to_numpy()
+            rate = lambda c, t: c.sum(axis=-1) / t.sum(axis=-1)
+            idx = np.random.default_rng(seed).integers(0, len(common), size=(n_boot, len(common)))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                boot = rate(ca[idx], ta[idx]) / rate(cb[idx], tb[idx])
+            lo, hi = np.nanquantile(boot, [0.025, 0.975])
+            ms = lambda d: d.cpu_s.sum() / max(d.iterations.sum(), 1)
+            rows.append({"variant": variant, "alpha": alpha, "n (paired starts)": len(common),
+                         "verified per core-hour, reference": 3600 * rate(cb, tb),
+                         "verified per core-hour, variant": 3600 * rate(ca, ta),
+                         "ratio": f"{rate(ca, ta) / rate(cb, tb):.2f}", "95 % interval": f"{lo:.2f}–{hi:.2f}",
+                         "P(ratio ≤ 1.2)": f"{np.mean(boot <= 1.2):.3f}",
+                         "ms/iter ratio": f"{ms(a) / ms(b):.2f}",
+                         "total iterations ratio": f"{a.iterations.sum() / max(b.iterations.sum(), 1):.2f}",
+                         "total CPU ratio": f"{ta.sum() / tb.sum():.2f}"})
     return rows
 
 
@@ -178,6 +247,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--variants", action="store_true", help="compare the variants instead of the default")
     ap.add_argument("--compare", action="store_true", help="previous default vs new default only")
+    ap.add_argument("--steps", action="store_true",
+                    help="default vs fewer RK8 steps at high α (scale_down, ± fewer coast steps), same starts")
     ap.add_argument("--max-wall-s", type=float, default=None,
                     help="raise the wall-time safety net (on a loaded machine it would cut solves short)")
     ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
@@ -199,8 +270,12 @@ def main() -> None:
         write_section("scaling", text)
         return
 
-    variants = VARIANTS if args.variants else COMPARE if args.compare else {"default": IpoptOptions()}
-    cells = [(label, opts, alpha) for label, opts in variants.items() for alpha in args.alphas]
+    variants = (VARIANTS if args.variants else COMPARE if args.compare else STEPS if args.steps
+                else {"default": IpoptOptions()})
+    if args.steps:  # α-major, so that the runs compared on the same starts run at about the same time
+        cells = [(label, opts, alpha) for alpha in args.alphas for label, opts in variants.items()]
+    else:
+        cells = [(label, opts, alpha) for label, opts in variants.items() for alpha in args.alphas]
 
     def run_cell(cell):
         label, opts, alpha = cell
@@ -219,19 +294,27 @@ def main() -> None:
     for df in raw:
         rows.append({"variant": df.variant.iloc[0], **summarize(df)} if len(variants) > 1 else summarize(df))
         caps += cap_table(df)
-    name = "variants" if args.variants else "compare" if args.compare else "default"
+    name = "variants" if args.variants else "compare" if args.compare else "steps" if args.steps else "default"
     text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; one worker process per cell.\n\n" + markdown(rows)
-    if not args.variants and not args.compare:
+    if not args.variants and not args.compare and not args.steps:
         text += "\nIteration cap (computed from the same solves, see the script's docstring):\n\n" + markdown(caps)
     all_raw = pd.concat(raw)
+    if args.raw:  # first, so that a failure in the tables below does not lose the solves
+        all_raw.to_parquet(args.raw)
     abort_rows = abort_table(all_raw)
     if abort_rows:
         text += ("\nStall abort, start by start on the same starts, per TOF band of the converged solution "
                  "(see `abort_table`):\n\n" + markdown(abort_rows))
+    if args.steps:
+        text += ("\nRatio of verified per core-hour (variant / default) on the same starts; 95 % interval from "
+                 f"a paired bootstrap over starts ({BOOTSTRAP} resamples, seed {args.seed}; see "
+                 "`ratio_bootstrap`):\n\n" + markdown(ratio_bootstrap(all_raw, STEPS_PAIRS, args.seed)))
+        text += ("\nStart by start on the same starts, per TOF band of the converged solution (6.3 TU, the "
+                 "hyperplane spacing; see `band_table`):\n\n"
+                 + markdown(band_table(all_raw, STEPS_PAIRS, "converged, default", "converged, variant",
+                                       with_variant=True, with_moves=True)))
     print(text)
     write_section(name, text)
-    if args.raw:
-        all_raw.to_parquet(args.raw)
 
 
 if __name__ == "__main__":
