@@ -84,6 +84,12 @@ def test_job_logs_datasets_and_a_logged_model_with_linked_metrics(tmp_path):
     assert [a.path for a in client.list_artifacts(job.info.run_id, "models")] == ["models/model.pt"]
 
 
+def default_sigint() -> None:
+    """In the child: SIGINT back to its default.  A shell starts background jobs (``cmd &``, ``nohup``) with
+    SIGINT ignored, and Python then installs no KeyboardInterrupt handler: Ctrl-C must be testable anyway."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 JOB = textwrap.dedent(
     """
     import sys, time
@@ -101,7 +107,8 @@ def test_a_killed_job_ends_its_run_killed(tmp_path, sig):
     store = tmp_path / "mlflow"
     parent = start(store)
     proc = subprocess.Popen(
-        [sys.executable, "-c", JOB, str(store)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV
+        [sys.executable, "-c", JOB, str(store)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+        preexec_fn=default_sigint,
     )
     assert proc.stdout.readline().strip() == "ready", proc.stderr.read()
     proc.send_signal(sig)

@@ -337,6 +337,7 @@ def test_ctrl_c_ends_the_workflow_and_job_runs_killed(tmp_path):
     proc = subprocess.Popen(
         [SNAKEMAKE, "results/dejong/high_quality.parquet", "--configfile", "config/test.yaml"],
         cwd=wd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True, env=ENV,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # see test_tracking.default_sigint
     )
     deadline = time.monotonic() + 300
     invocation = wd / "results" / "mlflow" / "invocation.json"  # written once the store is created and migrated
