@@ -21,6 +21,8 @@ from amorgs.config import Config
 from amorgs.data.tables import validate_solutions
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: Ablation tables a config may leave empty (ablation.iteration_caps, break_even_solutions, fraction_samplers).
+OPTIONAL_ABLATION_TABLES = ("ablation_iteration_capped", "ablation_break_even", "ablation_learning_curve")
 
 
 def _check_file(path: str) -> str | None:
@@ -36,7 +38,9 @@ def _check_file(path: str) -> str | None:
             data = json.loads(p.read_text())
             if path == layout.ABLATION_SUMMARY and not any(k.startswith("aRT_iterations/") for k in data):
                 return f"{path}: no expected-running-time metrics (aRT_iterations/*)"
-        if p.suffix == ".csv" and Path(path).name.startswith("ablation_") and "iteration_capped" not in path:
+        if p.suffix == ".csv" and Path(path).stem in OPTIONAL_ABLATION_TABLES:
+            pass  # empty when the config asks for none of it (no caps, no break-even, no learning curve)
+        elif p.suffix == ".csv" and Path(path).name.startswith("ablation_"):
             df = pd.read_csv(p)
             missing = [c for c in ("alpha", "sampler") if c not in df.columns]
             if missing or df.empty:

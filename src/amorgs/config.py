@@ -30,6 +30,9 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
 from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_NAMES
+
+#: The arms that load models (the only ones a learning curve over data fractions applies to).
+LEARNED_SAMPLERS = tuple(s for s in SAMPLER_NAMES if NEEDS_MODELS[s])
 from amorgs.alphas import alpha_label
 from amorgs.analysis.structure_params import StructureParams
 from amorgs.errors import ConfigError
@@ -237,7 +240,8 @@ class Ablation(Section):
     options; ``perturbation_scale`` is σ of nearest_alpha_perturbed (box-normalised), ``gmm_components`` the
     mixture size of gmm_lstm per training α, ``iteration_caps`` the Fig. 22 caps fixed before the solves,
     ``beta_sweep_kg`` extra β (kg) of the rate sweep, ``n_boot`` bootstrap resamples, ``break_even_solutions``
-    the high-quality solutions wanted per new α of the break-even table (issue 11 §5)."""
+    the high-quality solutions wanted per new α of the break-even table (issue 11 §5), ``fraction_samplers``
+    the learned arms of the learning curve (issue 11 §4)."""
 
     enabled: Flag
     samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)]  # type: ignore[valid-type]
@@ -253,8 +257,12 @@ class Ablation(Section):
     n_boot: PositiveInt
     break_even_solutions: tuple[PositiveInt, ...] = Field(
         description="high-quality solutions wanted per new α in the break-even table (none: no table)")
+    fraction_samplers: tuple[Literal[LEARNED_SAMPLERS], ...] = Field(  # type: ignore[valid-type]
+        description="learned arms run again with the models of every cr3bp_models.data_fractions (the "
+                    "learning curve of the ablation's expected running time; none: no curve)")
 
-    _unique_lists = field_validator("samplers", "iteration_caps", "beta_sweep_kg", "break_even_solutions")(_unique)
+    _unique_lists = field_validator("samplers", "iteration_caps", "beta_sweep_kg", "break_even_solutions",
+                                    "fraction_samplers")(_unique)
 
 
 class Config(Section):

@@ -23,13 +23,16 @@ FIGURE = "results/figures/{name}.png"
 CR3BP_ANALYSIS_METRICS = "results/cr3bp/analysis/metrics.json"
 CR3BP_ANALYSIS_TABLE = "results/cr3bp/analysis/{name}.parquet"
 CR3BP_MODEL = "results/cr3bp/models/{model}.pt"
-CR3BP_FRACTION_MODEL = "results/cr3bp/models/fraction={fraction}/cvae_gmm.pt"
+#: Models trained on a fraction of the rows of every training α (Fig. 18; the ablation's learning curve).
+CR3BP_FRACTION_MODEL = "results/cr3bp/models/fraction={fraction}/{model}.pt"
 CR3BP_SAMPLES = "results/cr3bp/predictions/samples.parquet"
 CR3BP_PREDICTION_METRICS = "results/cr3bp/predictions/metrics.json"
 ABLATION_CELL = "results/cr3bp/ablation/alpha={alpha}/{sampler}.parquet"
 #: Models and ablation cells of the extra model-training seeds (``cr3bp_models.extra_seeds``), wildcard {mseed}.
 CR3BP_REPLICATE_MODEL = "results/cr3bp/models/seed={mseed}/{model}.pt"
 ABLATION_REPLICATE_CELL = "results/cr3bp/ablation/seed={mseed}/alpha={alpha}/{sampler}.parquet"
+#: Cells of a learned arm whose models saw only a fraction of the training data (the learning curve).
+ABLATION_FRACTION_CELL = "results/cr3bp/ablation/fraction={fraction}/alpha={alpha}/{sampler}.parquet"
 ABLATION_SUMMARY = "results/cr3bp/ablation/summary.json"
 TABLE = "results/tables/{name}"
 
@@ -48,7 +51,7 @@ ABLATION_FIGURES = (
 )
 #: The issue-11 statistics tables, each written as <name>.csv and <name>.md (anytime: CSV only).
 ABLATION_STAT_TABLES = ("ablation_rates", "ablation_beta_sweep", "ablation_ert", "ablation_iteration_capped",
-                        "ablation_break_even")
+                        "ablation_break_even", "ablation_learning_curve")
 ABLATION_TABLES = (
     "table6.csv", "table6.md", "ablation_capped.csv", "ablation_coverage.csv",
     *(f"{n}.{ext}" for n in ABLATION_STAT_TABLES for ext in ("csv", "md")), "ablation_anytime.csv",

@@ -123,6 +123,9 @@ def test_ablation_report_step_writes_every_declared_output(tmp_path, monkeypatch
                 "guess_tau_s": 10.0, "guess_tau_i": 2.0, "guess_tau_f": 2.0, "guess_m_f": 420.0,
                 "iterations": rng.integers(20, 1000, n), "cpu_s": rng.uniform(0.2, 10, n), "wall_s": 1.0,
             }))
+    for k, fraction in enumerate((0.1, 0.5)):  # AmorGS with models that saw a fraction of the data
+        hq = rng.random(8) < 0.2 + 0.2 * k
+        cells.append(cells[2].assign(data_fraction=fraction, converged=hq, m_f=np.where(hq, 430.0, 300.0)))
     paths = []
     for i, c in enumerate(cells):
         paths.append(str(tmp_path / f"cell{i}.parquet"))
@@ -145,6 +148,12 @@ def test_ablation_report_step_writes_every_declared_output(tmp_path, monkeypatch
     assert even.loc[(0.15, "amorgs"), "upfront_cpu_h"] == pytest.approx((1800 + 150) / 3600)
     assert even.loc[(0.15, "nearest_alpha"), "upfront_cpu_h"] == pytest.approx(1800 / 3600)
     assert set(even["solutions_wanted"]) == set(cfg.ablation.break_even_solutions)
+    curve = pd.read_csv(f"{t}/ablation_learning_curve.csv")
+    it = curve[(curve["unit"] == "iterations") & (curve["alpha"] == 0.15)].set_index("data_fraction")
+    assert list(it.index) == [0.1, 0.5, 1.0] and set(it["sampler"]) == {"amorgs"}
+    assert list(it["n"]) == [8, 8, 8]
+    table6 = pd.read_csv(f"{t}/table6.csv")
+    assert (table6["n"] == 8).all()  # the learning-curve cells stay out of the main tables
     for name in layout.ABLATION_TABLES:
         assert (tmp_path / t / name).stat().st_size > 0, name
     for name in layout.ABLATION_FIGURES:

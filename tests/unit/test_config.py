@@ -175,7 +175,8 @@ def test_jobs_and_targets_follow_the_enabled_stages(tmp_path):
     assert "results/cr3bp/ablation/alpha=0.850/amorgs.parquet" in targets
     assert {"results/tables/table6.md", "results/cr3bp/analysis/metrics.json"} <= set(targets)
     jobs = steps.expected_jobs(cfg)
-    assert ("train_cr3bp_fraction", {"fraction": "0.5"}) in jobs  # the real wildcards, nothing invented
+    assert ("train_cr3bp_fraction", {"fraction": "0.5", "model": "lstm"}) in jobs  # the real wildcards only
+    assert ("ablation_cell_fraction", {"fraction": "0.1", "alpha": "0.850", "sampler": "amorgs"}) in jobs
     assert ("filter", {"problem": "cr3bp"}) in jobs and ("analyze_cr3bp", {}) in jobs
     assert sum(rule == "ablation_cell" for rule, _ in jobs) == len(cfg.problems.cr3bp.alphas.test) * len(cfg.ablation.samplers)
     data = mapping()

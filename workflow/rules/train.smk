@@ -68,7 +68,7 @@ rule train_cr3bp_fraction:
     output:
         **step_outputs("train_cr3bp_fraction"),
     log:
-        "logs/train_cr3bp/fraction={fraction}/cvae_gmm.log",
+        "logs/train_cr3bp/fraction={fraction}/{model}.log",
     conda:
         "../envs/amorgs.yaml"
     threads: CFG.resources.train.threads
@@ -103,7 +103,7 @@ rule train_cr3bp_replicate:
 rule predict_cr3bp:
     input:
         models=steps.outputs_of("train_cr3bp", CFG, "model"),
-        fraction_models=steps.outputs_of("train_cr3bp_fraction", CFG, "model"),
+        fraction_models=steps.outputs_of("train_cr3bp_fraction", CFG, "model", model="cvae_gmm"),
         high_quality=layout.HIGH_QUALITY.format(problem="cr3bp"),
     output:
         **step_outputs("predict_cr3bp"),

@@ -35,18 +35,23 @@ class CellSettings(Section):
     train_alphas: tuple[float, ...]
     perturbation_scale: Annotated[float, Field(ge=0)]
     gmm_components: Annotated[int, Field(ge=1)]
+    data_fraction: Annotated[float, Field(gt=0, le=1)] = 1.0
 
 
 def _cell_settings(cfg: Config, w: Wildcards) -> CellSettings:
     a, cr3bp = cfg.ablation, cfg.problems.cr3bp
     alpha = cr3bp.alpha_values()[w["alpha"]]
-    replicate = "mseed" in w
-    name = f"{w['sampler']}@seed={w['mseed']}" if replicate else w["sampler"]
+    replicate, fraction = "mseed" in w, float(w.get("fraction", 1.0))
+    name = w["sampler"]
+    if replicate:
+        name += f"@seed={w['mseed']}"
+    if "fraction" in w:
+        name += f"@fraction={w['fraction']}"
     return CellSettings(alpha=alpha, sampler=w["sampler"],
                         model_seed=int(w["mseed"]) if replicate else cfg.cr3bp_models.seed,
                         starts=a.n_starts, seed=cell_seed(a.seed, "cr3bp", alpha, name), solver=cr3bp.solver,
                         train_alphas=cr3bp.alphas.train_values(), perturbation_scale=a.perturbation_scale,
-                        gmm_components=a.gmm_components)
+                        gmm_components=a.gmm_components, data_fraction=fraction)
 
 
 def run_cell(job: Job, run) -> None:
@@ -71,6 +76,8 @@ def run_cell(job: Job, run) -> None:
                             gmm_components=s.gmm_components)
     df = solve_cell("cr3bp", s.alpha, sampler, s.starts, s.seed, s.solver, job.threads)
     df.insert(2, "model_seed", s.model_seed)
+    if s.data_fraction < 1.0:  # a learning-curve cell: its models saw this fraction of the training rows
+        df.insert(3, "data_fraction", s.data_fraction)
     write_parquet(df, job.output["table"])
     conv = df[df["converged"]]
     run.log_metrics({
@@ -91,6 +98,14 @@ def cell_jobs(cfg: Config) -> list[dict[str, str]]:
 
 def replicate_cell_jobs(cfg: Config) -> list[dict[str, str]]:
     return [{"mseed": str(m), **w} for m in cfg.cr3bp_models.extra_seeds for w in cell_jobs(cfg)]
+
+
+def fraction_cell_jobs(cfg: Config) -> list[dict[str, str]]:
+    """The learning curve: each of ``ablation.fraction_samplers`` with the models of every data fraction."""
+    if not (cfg.ablation.enabled and cfg.cr3bp_models.enabled):
+        return []
+    return [{"fraction": layout.fraction_label(f), "alpha": label, "sampler": s}
+            for f in cfg.cr3bp_models.data_fractions for label in _test_labels(cfg) for s in cfg.ablation.fraction_samplers]
 
 
 def _test_labels(cfg: Config) -> list[str]:
@@ -168,6 +183,8 @@ def run_report(job: Job, run) -> None:
         tmp.write_text(table6_markdown(tables["table6"]) + "\n")
     for key, table in tables.items():
         stem = key if key == "table6" else f"ablation_{key}"
+        if table.columns.empty:  # a study the config did not ask for: say so rather than leave an empty file
+            table = pd.DataFrame({"status": [f"not requested by the config ({key})"]})
         with atomic_path(by_name[f"{stem}.csv"]) as tmp:
             table.to_csv(tmp, index=False)
         if key in MARKDOWN_TITLES:
@@ -189,6 +206,9 @@ STEPS = (
     Step("ablation_cell_replicate", CellSettings, _cell_settings, run_cell, replicate_cell_jobs,
          lambda w: {"table": layout.ABLATION_REPLICATE_CELL.format_map(w)},
          description="a cell with the models of an extra training seed"),
+    Step("ablation_cell_fraction", CellSettings, _cell_settings, run_cell, fraction_cell_jobs,
+         lambda w: {"table": layout.ABLATION_FRACTION_CELL.format_map(w)},
+         description="a learned arm with models trained on a fraction of the data (learning curve)"),
     Step("ablation_report", ReportSettings, _report_settings, run_report, once_if("ablation"),
          lambda w: {"summary": layout.ABLATION_SUMMARY,
                     "tables": [layout.TABLE.format(name=n) for n in layout.ABLATION_TABLES],

@@ -74,6 +74,17 @@ def run_train(job: Job, run) -> None:
     print(f"{output}: {s.model} trained {m.epochs} epochs on {len(hq)} solutions")
 
 
+def fraction_model_jobs(cfg: Config) -> list[dict[str, str]]:
+    """Per data fraction: the GMM-CVAE (Fig. 18) and the models of the ablation's learning-curve arms."""
+    if not cfg.cr3bp_models.enabled:
+        return []
+    from amorgs.ablation.arms import NEEDS_MODELS
+
+    curve = {m for s in cfg.ablation.fraction_samplers for m in NEEDS_MODELS[s]} if cfg.ablation.enabled else set()
+    models = [m for m in CR3BP_MODELS if m == "cvae_gmm" or m in curve]
+    return [{"fraction": layout.fraction_label(f), "model": m} for f in cfg.cr3bp_models.data_fractions for m in models]
+
+
 def replicate_models_needed(cfg: Config) -> list[str]:
     """The models the ablation's arms load (only those are trained for the extra seeds)."""
     from amorgs.ablation.arms import NEEDS_MODELS
@@ -87,11 +98,9 @@ STEPS = (
          lambda cfg: [{"model": m} for m in CR3BP_MODELS] if cfg.cr3bp_models.enabled else [],
          lambda w: _outputs(layout.CR3BP_MODEL.format_map(w)),
          description="one CR3BP model on the high-quality rows at the training α → checkpoint"),
-    Step("train_cr3bp_fraction", TrainSettings, _settings, run_train,
-         lambda cfg: [{"fraction": layout.fraction_label(f)} for f in cfg.cr3bp_models.data_fractions]
-         if cfg.cr3bp_models.enabled else [],
+    Step("train_cr3bp_fraction", TrainSettings, _settings, run_train, fraction_model_jobs,
          lambda w: _outputs(layout.CR3BP_FRACTION_MODEL.format_map(w)),
-         description="a GMM-CVAE on a seeded fraction of the rows of every training α (Fig. 18)"),
+         description="a model on a seeded fraction of the rows of every training α (Fig. 18, learning curve)"),
     Step("train_cr3bp_replicate", TrainSettings, _settings, run_train,
          lambda cfg: [{"mseed": str(s), "model": m} for s in cfg.cr3bp_models.extra_seeds for m in replicate_models_needed(cfg)],
          lambda w: _outputs(layout.CR3BP_REPLICATE_MODEL.format_map(w)),
