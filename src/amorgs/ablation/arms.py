@@ -33,3 +33,8 @@ NEEDS_MODELS = {
     "nearest_alpha_perturbed": (),
     "gmm_lstm": ("lstm",),
 }
+
+
+def models_loaded(samplers) -> list[str]:
+    """The checkpoints any of ``samplers`` loads, sorted (none for uniform and the reuse baselines)."""
+    return sorted({m for s in samplers for m in NEEDS_MODELS[s]})

@@ -117,8 +117,13 @@ def get_step(rule: str) -> Step:
 # ------------------------------------------------------------------------------------ the job graph
 
 
+def _paths(value: str | list[str]) -> list[str]:
+    """A named output's paths (one path or a list of them)."""
+    return [value] if isinstance(value, str) else list(value)
+
+
 def _flat(outputs: Outputs) -> list[str]:
-    return [p for v in outputs.values() for p in ([v] if isinstance(v, str) else v)]
+    return [p for v in outputs.values() for p in _paths(v)]
 
 
 def expected_jobs(cfg: Config) -> list[tuple[str, dict[str, str]]]:
@@ -135,12 +140,8 @@ def outputs_of(rule: str, cfg: Config, name: str, **match: str) -> list[str]:
     """Output ``name`` of every job of ``rule`` in ``cfg`` whose wildcards include ``match`` — the inputs of
     a downstream rule (e.g. the shards of one (problem, α) for its merge)."""
     step = registry()[rule]
-    out: list[str] = []
-    for w in step.jobs(cfg):
-        if all(w.get(k) == v for k, v in match.items()):
-            value = step.outputs(w)[name]
-            out += [value] if isinstance(value, str) else value
-    return out
+    return [p for w in step.jobs(cfg) if all(w.get(k) == v for k, v in match.items())
+            for p in _paths(step.outputs(w)[name])]
 
 
 def check_settings(cfg: Config) -> None:
@@ -165,9 +166,6 @@ def check_rules(rules: Mapping[str, Any]) -> None:
 
 class _Template(dict):
     """``str.format_map`` mapping that leaves every wildcard as ``{name}`` (the rule's output templates)."""
-
-    def __missing__(self, key: str) -> str:
-        return "{" + key + "}"
 
     def __getitem__(self, key: str) -> str:
         return "{" + key + "}"

@@ -13,6 +13,7 @@ from pydantic import Field
 
 from amorgs import layout
 from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS, SAMPLER_NAMES
+from amorgs.alphas import alpha_label
 from amorgs.config import Config, Section
 from amorgs.data.seeds import cell_seed
 from amorgs.errors import InputError
@@ -109,8 +110,6 @@ def fraction_cell_jobs(cfg: Config) -> list[dict[str, str]]:
 
 
 def _test_labels(cfg: Config) -> list[str]:
-    from amorgs.alphas import alpha_label
-
     return [alpha_label(a) for a in cfg.problems.cr3bp.alphas.test]
 
 

@@ -4,13 +4,11 @@ drawn from them (:func:`amorgs.figures.structure.structure_figures`)."""
 
 from __future__ import annotations
 
-import os
-
 from amorgs import layout
 from amorgs.analysis.structure_params import StructureParams
 from amorgs.config import Config, Section
 from amorgs.steps import Job, Step, Wildcards, once_if
-from amorgs.steps.outputs import finite_metrics, use_agg, write_figures
+from amorgs.steps.outputs import by_name, finite_metrics, use_agg, write_figures
 
 
 class AnalyzeSettings(Section):
@@ -35,11 +33,9 @@ def run_analyze(job: Job, run) -> None:
     s: AnalyzeSettings = job.settings
     solutions = pd.concat([pd.read_parquet(p) for p in job.input["solutions"]], ignore_index=True)
     result = analyze(solutions, pd.read_parquet(job.input["high_quality"]), s.beta_kg, s.params)
-    by_name = {os.path.basename(p).removesuffix(".parquet"): p for p in job.output["tables"]}
-    if sorted(result.tables) != sorted(by_name):
-        raise ValueError(f"analysis tables {sorted(result.tables)} differ from the declared outputs {sorted(by_name)}")
+    paths = by_name(job.output["tables"], result.tables, ".parquet", "analysis tables")
     for name, table in result.tables.items():
-        write_parquet(table, by_name[name])
+        write_parquet(table, paths[name])
     write_json(result.metrics, job.output["metrics"])
     run.log_metrics(finite_metrics(result.metrics))
     run.log_artifact(job.output["metrics"])

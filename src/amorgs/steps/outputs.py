@@ -25,15 +25,21 @@ def write_png(fig, path: str, run) -> None:
     run.log_artifact(path, "figures")
 
 
-def write_figures(figures: Mapping, paths: list[str] | str, run) -> None:
-    """Save each figure of ``figures`` (name → Figure) to the declared output whose file name is
-    ``<name>.png``; the names must be exactly those of ``paths``."""
+def by_name(paths: list[str] | str, names, suffix: str, what: str) -> dict[str, str]:
+    """The declared outputs ``paths`` keyed by file name without ``suffix``; they must be exactly ``names``
+    (what a step computed), else a ``ValueError`` naming both."""
     paths = [paths] if isinstance(paths, str) else list(paths)
-    by_name = {os.path.basename(p).removesuffix(".png"): p for p in paths}
-    if sorted(figures) != sorted(by_name):
-        raise ValueError(f"figures {sorted(figures)} differ from the declared outputs {sorted(by_name)}")
+    out = {os.path.basename(p).removesuffix(suffix): p for p in paths}
+    if sorted(names) != sorted(out):
+        raise ValueError(f"{what} {sorted(names)} differ from the declared outputs {sorted(out)}")
+    return out
+
+
+def write_figures(figures: Mapping, paths: list[str] | str, run) -> None:
+    """Save each figure of ``figures`` (name → Figure) to the declared output ``<name>.png``."""
+    paths = by_name(paths, figures, ".png", "figures")
     for name, fig in figures.items():
-        write_png(fig, by_name[name], run)
+        write_png(fig, paths[name], run)
 
 
 def use_agg() -> None:

@@ -78,18 +78,18 @@ def fraction_model_jobs(cfg: Config) -> list[dict[str, str]]:
     """Per data fraction: the GMM-CVAE (Fig. 18) and the models of the ablation's learning-curve arms."""
     if not cfg.cr3bp_models.enabled:
         return []
-    from amorgs.ablation.arms import NEEDS_MODELS
+    from amorgs.ablation.arms import models_loaded
 
-    curve = {m for s in cfg.ablation.fraction_samplers for m in NEEDS_MODELS[s]} if cfg.ablation.enabled else set()
+    curve = models_loaded(cfg.ablation.fraction_samplers) if cfg.ablation.enabled else []
     models = [m for m in CR3BP_MODELS if m == "cvae_gmm" or m in curve]
     return [{"fraction": layout.fraction_label(f), "model": m} for f in cfg.cr3bp_models.data_fractions for m in models]
 
 
 def replicate_models_needed(cfg: Config) -> list[str]:
     """The models the ablation's arms load (only those are trained for the extra seeds)."""
-    from amorgs.ablation.arms import NEEDS_MODELS
+    from amorgs.ablation.arms import models_loaded
 
-    return sorted({m for s in cfg.ablation.samplers for m in NEEDS_MODELS[s]}) if cfg.ablation.enabled else []
+    return models_loaded(cfg.ablation.samplers) if cfg.ablation.enabled else []
 
 
 STAGE = 5
