@@ -168,6 +168,15 @@ def test_expected_running_time_and_speedups(three_arms):
     assert it.loc["uniform", "speedup"] == pytest.approx(1.0)
     lo, hi = it.loc["amorgs", ["speedup_ci95_low", "speedup_ci95_high"]]
     assert lo <= 2.5 <= hi and lo < hi
+    # against reuse: AmorGS needs 200 iterations per HQ solution where nearest_alpha needs 30
+    assert it.loc["amorgs", "versus_reuse"] == pytest.approx(30 / 200)
+    assert it.loc["nearest_alpha", "versus_reuse"] == pytest.approx(1.0)
+    lo, hi = it.loc["amorgs", ["versus_reuse_ci95_low", "versus_reuse_ci95_high"]]
+    assert lo <= 0.15 <= hi < 1  # reuse is faster, and the interval says so
+    no_reuse = expected_running_time(three_arms, 415.0, reuse="absent", n_boot=500, seed=1)
+    assert no_reuse["versus_reuse"].isna().all()  # no such arm: nothing to compare against
+    speedups = ["speedup", "speedup_ci95_low", "speedup_ci95_high"]
+    pd.testing.assert_frame_equal(no_reuse[speedups], ert[speedups])  # the reuse bootstrap has its own stream
     cpu = ert[ert["unit"] == "cpu_s"].set_index("sampler")
     assert cpu.loc["amorgs", "aRT"] == pytest.approx(600 * 0.01 / 3)  # 0.01 s per iteration
     again = expected_running_time(three_arms, 415.0, n_boot=500, seed=1)
@@ -180,6 +189,7 @@ def test_expected_running_time_when_nothing_found():
     df = pd.concat([arm("uniform", [100, 100], [0, 0]), arm("amorgs", [10, 10], [1, 0])])
     it = expected_running_time(df, 415.0, n_boot=100).query("unit == 'iterations'").set_index("sampler")
     assert it.loc["uniform", "aRT"] == math.inf and it.loc["amorgs", "speedup"] == math.inf
+    assert math.isnan(it.loc["amorgs", "versus_reuse"])  # no nearest_alpha arm in this table
 
 
 def test_iteration_capped_is_a_real_cap(three_arms):

@@ -115,6 +115,9 @@ def summarize(
         metrics[metric_key(f"speedup_{r.unit}", r.alpha, r.sampler)] = r.speedup
         metrics[metric_key(f"speedup_ci95_low_{r.unit}", r.alpha, r.sampler)] = r.speedup_ci95_low
         metrics[metric_key(f"speedup_ci95_high_{r.unit}", r.alpha, r.sampler)] = r.speedup_ci95_high
+        metrics[metric_key(f"versus_reuse_{r.unit}", r.alpha, r.sampler)] = r.versus_reuse
+        metrics[metric_key(f"versus_reuse_ci95_low_{r.unit}", r.alpha, r.sampler)] = r.versus_reuse_ci95_low
+        metrics[metric_key(f"versus_reuse_ci95_high_{r.unit}", r.alpha, r.sampler)] = r.versus_reuse_ci95_high
     for r in capped_it.itertuples(index=False):
         cap = f"cap_{r.cap_iterations}"
         metrics[metric_key("itcap_percent", r.alpha, r.sampler, cap)] = r.percent_within_cap
@@ -198,7 +201,8 @@ def markdown_table(df: pd.DataFrame, title: str = "") -> str:
 MARKDOWN_TITLES = {
     "rates": "High-quality rate per arm: k of n starts, Wilson 95 % interval, one-sided Fisher p (arm > reference)",
     "beta_sweep": "High-quality rate vs β per arm (Wilson 95 %, one-sided Fisher p)",
-    "ert": "Expected running time aRT = cost spent ÷ high-quality found; speed-up = aRT(uniform) ÷ aRT(arm), bootstrap 95 %",
+    "ert": "Expected running time aRT = cost spent ÷ high-quality found; speed-up = aRT(uniform) ÷ aRT(arm); "
+           "versus_reuse = aRT(nearest_alpha) ÷ aRT(arm), > 1: the arm beats reuse; bootstrap 95 %",
     "iteration_capped": "Fig. 22 with a fixed iteration cap: % within cap, throughput, ratios to uniform",
     "learning_curve": "Learning curve: aRT of the learned arms vs the fraction of the training data their models "
                       "saw; speed-up = aRT(uniform) ÷ aRT(arm), bootstrap 95 %",
