@@ -183,6 +183,24 @@ def test_expected_running_time_and_speedups(three_arms):
     pd.testing.assert_frame_equal(ert, again)  # seeded bootstrap
 
 
+def test_learning_curve_compares_each_fraction_with_uniform_and_reuse(three_arms):
+    from amorgs.ablation.statistics import expected_running_time, learning_curve
+
+    # AmorGS with models that saw 10 % of the data: 1 HQ of 6 in 600 iterations
+    partial = arm("amorgs", [100] * 6, [1, 0, 0, 0, 0, 0]).assign(data_fraction=0.1)
+    curve = learning_curve(three_arms, partial, 415.0, n_boot=300, seed=4)
+    it = curve[curve["unit"] == "iterations"].set_index("data_fraction")
+    assert list(it.index) == [0.1, 1.0] and set(it["sampler"]) == {"amorgs"}
+    assert it.loc[0.1, "aRT"] == pytest.approx(600) and it.loc[1.0, "aRT"] == pytest.approx(200)
+    assert it.loc[0.1, "speedup"] == pytest.approx(500 / 600)
+    assert it.loc[0.1, "versus_reuse"] == pytest.approx(30 / 600)
+    # fraction 1 is the full-data cells with the same bootstrap as the main aRT table
+    full = expected_running_time(three_arms, 415.0, n_boot=300, seed=4).query("unit == 'iterations'")
+    row = full.set_index("sampler").loc["amorgs"]
+    for column in ("speedup_ci95_low", "speedup_ci95_high", "versus_reuse_ci95_low", "versus_reuse_ci95_high"):
+        assert it.loc[1.0, column] == pytest.approx(row[column]), column
+
+
 def test_expected_running_time_when_nothing_found():
     from amorgs.ablation.statistics import expected_running_time
 

@@ -276,23 +276,23 @@ def expected_running_time(
 
 
 def learning_curve(
-    full: pd.DataFrame, partial: pd.DataFrame, beta_kg: float, baseline: str = "uniform", n_boot: int = 2000,
-    seed: int = 0,
+    full: pd.DataFrame, partial: pd.DataFrame, beta_kg: float, baseline: str = "uniform",
+    reuse: str = "nearest_alpha", n_boot: int = 2000, seed: int = 0,
 ) -> pd.DataFrame:
     """The expected running time of each learned arm against the fraction of the training data its models saw
     (issue 11 §4): :func:`expected_running_time` of the arm's cells at each ``data_fraction`` of ``partial``
-    and of its full-data cells in ``full`` (fraction 1), each against the same ``baseline`` cells of ``full``;
-    columns as there plus ``data_fraction``.  Empty without partial-data cells."""
+    and of its full-data cells in ``full`` (fraction 1), each against the same ``baseline`` and ``reuse``
+    cells of ``full``; columns as there plus ``data_fraction``.  Empty without partial-data cells."""
     if partial.empty:
         return pd.DataFrame()
     arms = sorted(partial["sampler"].unique())
     curves = pd.concat([full[full["sampler"].isin(arms)].assign(data_fraction=1.0), partial], ignore_index=True)
-    base = full[full["sampler"] == baseline]
+    references = full[full["sampler"].isin((baseline, reuse))]
     out = []
     for fraction, g in curves.groupby("data_fraction", sort=True):
-        ert = expected_running_time(pd.concat([base, g.drop(columns="data_fraction")], ignore_index=True), beta_kg,
-                                    baseline, n_boot, seed)
-        ert = ert[ert["sampler"] != baseline]
+        ert = expected_running_time(pd.concat([references, g.drop(columns="data_fraction")], ignore_index=True),
+                                    beta_kg, baseline=baseline, reuse=reuse, n_boot=n_boot, seed=seed)
+        ert = ert[~ert["sampler"].isin((baseline, reuse))]
         ert.insert(2, "data_fraction", float(fraction))
         out.append(ert)
     return pd.concat(out, ignore_index=True).sort_values(["alpha", "sampler", "unit", "data_fraction"],
