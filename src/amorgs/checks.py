@@ -21,8 +21,10 @@ from amorgs.config import Config
 from amorgs.data.tables import validate_solutions
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: Ablation tables a config may leave empty (ablation.iteration_caps, break_even_solutions, fraction_samplers).
-OPTIONAL_ABLATION_TABLES = ("ablation_iteration_capped", "ablation_break_even", "ablation_learning_curve")
+#: Ablation tables a config may leave empty (ablation.iteration_caps, break_even_solutions, fraction_samplers,
+#: cr3bp_models.extra_seeds).
+OPTIONAL_ABLATION_TABLES = ("ablation_iteration_capped", "ablation_break_even", "ablation_learning_curve",
+                            "ablation_seeds")
 
 
 def _check_file(path: str) -> str | None:

@@ -51,7 +51,7 @@ ABLATION_FIGURES = (
 )
 #: The issue-11 statistics tables, each written as <name>.csv and <name>.md (anytime: CSV only).
 ABLATION_STAT_TABLES = ("ablation_rates", "ablation_beta_sweep", "ablation_ert", "ablation_iteration_capped",
-                        "ablation_break_even", "ablation_learning_curve")
+                        "ablation_break_even", "ablation_learning_curve", "ablation_seeds")
 ABLATION_TABLES = (
     "table6.csv", "table6.md", "ablation_capped.csv", "ablation_coverage.csv",
     *(f"{n}.{ext}" for n in ABLATION_STAT_TABLES for ext in ("csv", "md")), "ablation_anytime.csv",

@@ -4,7 +4,8 @@
 ``library-grow`` (batches of library generation, each exported), ``models-export`` (ship a run's checkpoints),
 ``design`` (N good transfers at one α), ``boundary-conditions`` (recompute or check the resource), ``ui``
 (the MLflow UI on ``results/mlflow``), ``check-outputs`` (every output a config promises exists, is
-non-empty and is tracked) and ``config-schema`` (the JSON Schema generated from the config model).  Heavy
+non-empty and is tracked), ``config-schema`` (the JSON Schema generated from the config model) and
+``reference-export`` (commit a finished run's tables and figures with provenance, or ``--check`` them).  Heavy
 imports happen inside the command that needs them.
 """
 
@@ -28,6 +29,8 @@ EXAMPLES = {
     "check-outputs": "amorgs check-outputs --config config/smoke.yaml   # exit 0: complete; 1: missing or broken;\n"
     "                                                    # 3: complete but untracked in MLflow",
     "config-schema": "amorgs config-schema --write     # after changing src/amorgs/config.py",
+    "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
+    "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
 }
 
 
@@ -125,6 +128,22 @@ def cmd_check_outputs(args: argparse.Namespace) -> None:
     if problems:
         raise SystemExit("missing or empty outputs:\n  " + "\n  ".join(problems))
     print(f"{args.config}: every expected output is present, non-empty and tracked")
+
+
+def cmd_reference_export(args: argparse.Namespace) -> None:
+    from amorgs.reference import export_reference, verify_reference
+
+    if args.check:
+        manifest = verify_reference(args.dest)
+        print(f"{args.dest}: {len(manifest['files'])} files match {args.dest}/provenance.json "
+              f"(run of {manifest['config_file']} at {manifest['git_commit'][:10]})")
+        return
+    if args.config is None:
+        raise SystemExit("amorgs reference-export: --config is required (the config of the finished run)")
+    manifest = export_reference(args.config, args.dest, args.run_dir, args.library_dir)
+    print(f"{args.dest}: {len(manifest['files'])} files from the run of {args.config} "
+          f"({manifest['cpu_hours']['total']:.2f} CPU-hours, library of {manifest['library']['rows']} solves); "
+          f"manifest {args.dest}/provenance.json")
 
 
 def cmd_config_schema(args: argparse.Namespace) -> None:
@@ -238,3 +257,11 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--write", action="store_true", help=f"write it to {SCHEMA_PATH}")
     p.add_argument("--check", action="store_true", help=f"exit 1 if {SCHEMA_PATH} is not the generated schema")
     p.set_defaults(func=cmd_config_schema)
+
+    p = sub.add_parser("reference-export", help="commit a finished run's tables, figures and summary with provenance")
+    p.add_argument("--config", default=None, help="the config of the finished run (e.g. config/study.yaml)")
+    p.add_argument("--dest", required=True, help="where the reference result lives (e.g. reference/study)")
+    p.add_argument("--run-dir", default=".", help="the checkout the run ran in (its results/ and data/library)")
+    p.add_argument("--library-dir", default="data/library", help="the library the run read, relative to --run-dir")
+    p.add_argument("--check", action="store_true", help="verify the files of --dest against its manifest instead")
+    p.set_defaults(func=cmd_reference_export)

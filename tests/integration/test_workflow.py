@@ -213,6 +213,41 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
     res = snakemake(wd, "-n", "--configfile", "config/smoke.yaml")
     assert "Nothing to be done" in res.stdout + res.stderr
 
+    _check_reference_export(wd, tmp_path / "reference", cfg)
+
+
+def _check_reference_export(wd: Path, ref: Path, cfg) -> None:
+    """``amorgs reference-export`` on the finished smoke run: the ablation and prediction tables and figures
+    with their hashes, the run's CPU per rule, the solve tables behind them; then ``--check`` catches an edit."""
+    from amorgs.errors import InputError
+    from amorgs.reference import export_reference, verify_reference
+
+    (ref / "tables").mkdir(parents=True)
+    (ref / "tables" / "stale.md").write_text("from another run")
+    manifest = export_reference("config/smoke.yaml", ref, run_dir=wd)
+    files = {f["file"] for f in manifest["files"]}
+    assert {"tables/table6.md", "tables/ablation_ert.csv", "cr3bp/ablation/summary.json",
+            "cr3bp/predictions/metrics.json", "figures/fig22_iteration_capped.png"} <= files
+    assert files == {p.relative_to(ref).as_posix() for p in ref.rglob("*") if p.is_file()} - {"provenance.json", "README.md"}
+    assert "config/smoke.yaml" in (ref / "README.md").read_text()
+    assert (ref / "tables" / "table6.md").read_bytes() == (wd / "results" / "tables" / "table6.md").read_bytes()
+    cpu = manifest["cpu_hours"]
+    assert cpu["ablation_cell"] > 0 and cpu["train_cr3bp"] > 0 and cpu["generate"] > 0
+    assert abs(cpu["total"] - sum(v for k, v in cpu.items() if k != "total")) < 1e-9
+    cells = [t for t in manifest["solve_tables"] if t["file"].startswith("cr3bp/ablation/alpha=")]
+    assert sum(t["rows"] for t in cells) == cfg.ablation.n_starts * len(cfg.ablation.samplers) * 2
+    assert manifest["config_hash"] == cfg.hash and manifest["library"]["rows"] > 0
+    assert "torch" in manifest["packages"]
+
+    out = subprocess.run([sys.executable, "-m", "amorgs", "reference-export", "--dest", str(ref), "--check"],
+                         capture_output=True, text=True, env=ENV)
+    assert out.returncode == 0 and f"{len(files)} files match" in out.stdout, out.stdout + out.stderr
+    (ref / "tables" / "table6.md").write_text("edited")
+    with pytest.raises(InputError, match=r"table6\.md: SHA-256 differs"):
+        verify_reference(ref)
+    with pytest.raises(InputError, match=r"output missing"):  # the default config was never run here
+        export_reference("config/default.yaml", ref, run_dir=wd)
+
 
 def _interrupt_config() -> dict:
     cfg = smoke_config()

@@ -201,6 +201,21 @@ def test_learning_curve_compares_each_fraction_with_uniform_and_reuse(three_arms
         assert it.loc[1.0, column] == pytest.approx(row[column]), column
 
 
+def test_seed_spread_per_model_seed(three_arms):
+    from amorgs.ablation.statistics import seed_spread
+
+    assert seed_spread(three_arms, 415.0).empty  # one seed: nothing to spread
+    two = pd.concat([three_arms.assign(model_seed=11), three_arms.assign(model_seed=12)], ignore_index=True)
+    two.loc[(two["model_seed"] == 12) & (two["sampler"] == "amorgs"), ["converged", "m_f"]] = [True, 430.0]
+    t = seed_spread(two, 415.0).set_index(["sampler", "model_seed"])
+    assert len(t) == 6 and (t["n"] == 6).all()
+    assert t.loc[("amorgs", 11), "k_high_quality"] == 3 and t.loc[("amorgs", 12), "k_high_quality"] == 6
+    assert t.loc[("amorgs", 11), "aRT_iterations"] == pytest.approx(200)
+    assert t.loc[("amorgs", 12), "aRT_iterations"] == pytest.approx(100)
+    lo, hi = t.loc[("uniform", 11), ["ci95_low", "ci95_high"]]
+    assert lo < 100 * 2 / 6 < hi
+
+
 def test_expected_running_time_when_nothing_found():
     from amorgs.ablation.statistics import expected_running_time
 

@@ -28,9 +28,10 @@ RULES = (
                     "amorgs.solvers")),
 )
 #: Only the top layer may import the command line and the workflow steps: the command line itself, the steps,
-#: ``python -m amorgs``, and ``amorgs check-outputs`` (:mod:`amorgs.checks`), which verifies what the steps declare.
+#: ``python -m amorgs``, ``amorgs check-outputs`` (:mod:`amorgs.checks`), which verifies what the steps declare,
+#: and ``amorgs reference-export`` (:mod:`amorgs.reference`), which copies what the steps made.
 TOP = ("amorgs.cli", "amorgs.steps")
-TOP_IMPORTERS = ("amorgs.cli", "amorgs.steps", "amorgs.__main__", "amorgs.checks")
+TOP_IMPORTERS = ("amorgs.cli", "amorgs.steps", "amorgs.__main__", "amorgs.checks", "amorgs.reference")
 
 
 def _within(name: str, prefix: str) -> bool:

@@ -275,6 +275,25 @@ def expected_running_time(
     return pd.DataFrame(rows)
 
 
+def seed_spread(df: pd.DataFrame, beta_kg: float) -> pd.DataFrame:
+    """Per (α, sampler, model-training seed): starts n, high-quality k, rate (%) with its Wilson 95 % interval,
+    and aRT in IPOPT iterations — how far an arm moves between the seeds its models were trained with (the
+    pooled tables average over them; the model-free arms show the spread of the starts alone).  Empty when
+    the cells carry a single model seed."""
+    if "model_seed" not in df.columns or df["model_seed"].nunique() < 2:
+        return pd.DataFrame()
+    hq_all = high_quality(df, beta_kg).to_numpy()
+    cost_all = solve_costs(df, "iterations")
+    rows = []
+    for (alpha, sampler, mseed), idx in sorted(df.groupby(["alpha", "sampler", "model_seed"]).indices.items()):
+        k, n = int(hq_all[idx].sum()), len(idx)
+        lo, hi = wilson_interval(k, n)
+        rows.append({"alpha": alpha, "sampler": sampler, "model_seed": int(mseed), "n": n, "k_high_quality": k,
+                     "percent": 100 * k / n, "ci95_low": lo, "ci95_high": hi,
+                     "aRT_iterations": _ert(cost_all[idx], hq_all[idx])})
+    return pd.DataFrame(rows)
+
+
 def learning_curve(
     full: pd.DataFrame, partial: pd.DataFrame, beta_kg: float, baseline: str = "uniform",
     reuse: str = "nearest_alpha", n_boot: int = 2000, seed: int = 0,
