@@ -58,7 +58,8 @@ def cmd_models_export(args: argparse.Namespace) -> None:
 def cmd_library_grow(args: argparse.Namespace) -> None:
     from amorgs.data.library_grow import grow
 
-    grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice)
+    grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice,
+         alphas=args.alphas)
 
 
 def cmd_boundary_conditions(args: argparse.Namespace) -> None:
@@ -195,6 +196,8 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--batches", type=int, default=1, help="batches to run (each: every α × generate.shards shards)")
     p.add_argument("--hours", type=float, default=None, help="start no new batch after this many hours")
     p.add_argument("--nice", type=int, default=19, help="niceness added before starting (0: none)")
+    p.add_argument("--alphas", type=float, nargs="+", default=None,
+                   help="grow only these library α (e.g. the focus α 1.0 of the structure analysis); default: all")
     p.set_defaults(func=cmd_library_grow)
 
     p = sub.add_parser("boundary-conditions", help="recompute (or --check) the CR3BP boundary conditions")

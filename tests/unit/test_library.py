@@ -184,6 +184,21 @@ def test_batches_skip_held_shards_and_cover_every_alpha(tmp_path):
     assert next_batch(CONFIG, tmp_path / "none", "cr3bp") == 0
 
 
+def test_focused_batches_grow_only_the_chosen_alpha(tmp_path):
+    from amorgs.errors import ConfigError
+
+    focus = batch_targets(CONFIG, tmp_path / "none", "cr3bp", 2, alphas=[1.0])
+    assert focus == [f"results/cr3bp/solutions/alpha=1.000/shard-{k}.parquet" for k in range(16, 24)]
+    # the same shard indices (hence seeds) as the balanced batch 2 at α = 1.0: the two never collide
+    assert set(focus) <= set(batch_targets(CONFIG, tmp_path / "none", "cr3bp", 2))
+    manifest = read_manifest(LIBRARY, "cr3bp")
+    held = {k for e in manifest["files"] if e["file"].startswith("alpha=1.000/") for k in e["shards"]}
+    b = next_batch(CONFIG, LIBRARY, "cr3bp", [1.0])  # the first batch with an α = 1.0 shard missing
+    assert set(range(8 * b)) <= held and not set(range(8 * b, 8 * (b + 1))) <= held
+    with pytest.raises(ConfigError, match=r"α 0\.33 is not one of the library α"):
+        batch_targets(CONFIG, LIBRARY, "cr3bp", 0, alphas=[0.33])
+
+
 def test_library_export_cli_prints_one_line_for_a_foreign_shard(tmp_path):
     solutions = real_shards(tmp_path, n=1)
     shard = next(solutions.glob("alpha=*/shard-*.parquet"))

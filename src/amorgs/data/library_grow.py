@@ -3,7 +3,8 @@
 A *batch* ``b`` is, for every α of the library config (its 12 training α and 2 test α), the shard indices
 ``b·S … b·S + S − 1`` with ``S = problems.<problem>.generate.shards``.  Shard seeds derive from (library seed,
 problem, α, shard index), so batches never collide with each other or with shards the library already
-holds, and every batch is balanced across α.  :func:`grow` runs the lowest batch that still has shards
+holds, and every batch is balanced across α — or across the α of ``alphas`` only (e.g. the focus α of the
+structure analysis first); batches are counted per α, so a focused batch never collides either.  :func:`grow` runs the lowest batch that still has shards
 missing from the library, exports what finished, and repeats — each batch is one ordinary ``snakemake``
 invocation (its own working directory, so it never touches a workflow run's ``results/``), and every shard
 and every export is written atomically: stopping at any moment loses at most the solves in flight.
@@ -18,28 +19,43 @@ import time
 from pathlib import Path
 
 from amorgs import layout
+from amorgs.alphas import alpha_label
 from amorgs.config import load_config
+from amorgs.errors import ConfigError
 from amorgs.data.library import export_library, held_shards
 
 
-def batch_targets(config_file: str | Path, library_dir: str | Path, problem: str, batch: int) -> list[str]:
-    """The shard paths (relative to the grow working directory) of ``batch`` that the library lacks."""
-    cfg = load_config(config_file)
-    section = getattr(cfg.problems, problem)
-    per_batch = section.generate.shards
+def grown_alphas(config_file: str | Path, problem: str, alphas: list[float] | None = None) -> list[str]:
+    """The α labels a grow covers: every α of the library config, or those of ``alphas`` (each must be one of
+    them; a ``ConfigError`` names the one that is not)."""
+    labels = list(getattr(load_config(config_file).problems, problem).alpha_values())
+    if alphas is None:
+        return labels
+    unknown = [a for a in alphas if alpha_label(a) not in labels]
+    if unknown:
+        raise ConfigError(f"{config_file}: α {unknown[0]:g} is not one of the library α ({', '.join(labels)})")
+    return [alpha_label(a) for a in alphas]
+
+
+def batch_targets(config_file: str | Path, library_dir: str | Path, problem: str, batch: int,
+                  alphas: list[float] | None = None) -> list[str]:
+    """The shard paths (relative to the grow working directory) of ``batch`` that the library lacks, for every
+    library α or only those of ``alphas``."""
+    per_batch = getattr(load_config(config_file).problems, problem).generate.shards
     held = held_shards(library_dir, problem)
     return [
         layout.SHARD.format(problem=problem, alpha=label, shard=k)
         for k in range(batch * per_batch, (batch + 1) * per_batch)
-        for label in section.alpha_values()
+        for label in grown_alphas(config_file, problem, alphas)
         if (label, k) not in held
     ]
 
 
-def next_batch(config_file: str | Path, library_dir: str | Path, problem: str) -> int:
-    """The lowest batch with a shard the library does not hold yet."""
+def next_batch(config_file: str | Path, library_dir: str | Path, problem: str,
+               alphas: list[float] | None = None) -> int:
+    """The lowest batch with a shard (of ``alphas``, default every α) the library does not hold yet."""
     batch = 0
-    while not batch_targets(config_file, library_dir, problem, batch):
+    while not batch_targets(config_file, library_dir, problem, batch, alphas):
         batch += 1
     return batch
 
@@ -67,12 +83,14 @@ def snakemake_command(config_file: str | Path, workdir: str | Path, cores: int, 
 
 def grow(config_file: str | Path, library_dir: str | Path = "data/library", problem: str = "cr3bp",
          workdir: str | Path = "results/library-grow", cores: int = 2, batches: int = 1,
-         hours: float | None = None, niceness: int = 19, log=print) -> list[dict]:
-    """Run up to ``batches`` batches (stop starting new ones after ``hours``), exporting after each one.
+         hours: float | None = None, niceness: int = 19, log=print, alphas: list[float] | None = None) -> list[dict]:
+    """Run up to ``batches`` batches (stop starting new ones after ``hours``), exporting after each one;
+    ``alphas`` restricts the batches to those library α.
 
     Returns one export summary per batch (see :func:`export_library`).  ``niceness`` is added to this
     process's priority (and so to Snakemake's and its jobs') before anything starts.
     """
+    grown_alphas(config_file, problem, alphas)  # a bad α fails before anything starts
     if niceness:
         os.nice(niceness)
     t0 = time.monotonic()
@@ -82,8 +100,8 @@ def grow(config_file: str | Path, library_dir: str | Path = "data/library", prob
         if hours is not None and time.monotonic() - t0 > hours * 3600:
             log(f"library-grow: {hours} h elapsed, not starting another batch")
             break
-        batch = next_batch(config_file, library_dir, problem)
-        targets = batch_targets(config_file, library_dir, problem, batch)
+        batch = next_batch(config_file, library_dir, problem, alphas)
+        targets = batch_targets(config_file, library_dir, problem, batch, alphas)
         log(f"library-grow: batch {batch}: {len(targets)} shard job(s) in {workdir}")
         done = subprocess.run(snakemake_command(config_file, workdir, cores, targets), check=False)
         summary = export_library(solutions, library_dir, problem, config_file)
