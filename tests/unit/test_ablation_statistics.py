@@ -144,6 +144,9 @@ def test_fisher_and_rates(three_arms):
     assert r.loc["nearest_alpha", "percent"] == 100.0 and r.loc["nearest_alpha", "k_high_quality"] == 6
     assert r.loc["nearest_alpha", "p_gt_uniform"] == pytest.approx(fisher_greater(6, 6, 2, 6))
     assert r.loc["amorgs", "p_gt_nearest_alpha"] == pytest.approx(1.0)
+    # the reverse one-sided test: AmorGS (3 of 6) lower than reuse (6 of 6)
+    assert r.loc["amorgs", "p_lt_nearest_alpha"] == pytest.approx(fisher_greater(6, 6, 3, 6))
+    assert r.loc["amorgs", "p_lt_nearest_alpha"] < 0.1 and math.isnan(r.loc["nearest_alpha", "p_lt_nearest_alpha"])
     assert math.isnan(r.loc["uniform", "p_gt_uniform"])
     assert r.loc["amorgs", "ci95_low"] < 50.0 < r.loc["amorgs", "ci95_high"]
 

@@ -109,7 +109,7 @@ def summarize(
         metrics[metric_key("rate_percent", r.alpha, r.sampler, *swept)] = r.percent
         metrics[metric_key("rate_ci95_low", r.alpha, r.sampler, *swept)] = r.ci95_low
         metrics[metric_key("rate_ci95_high", r.alpha, r.sampler, *swept)] = r.ci95_high
-        for col in ("p_gt_uniform", "p_gt_nearest_alpha"):
+        for col in ("p_gt_uniform", "p_gt_nearest_alpha", "p_lt_nearest_alpha"):
             metrics[metric_key(f"fisher_{col}", r.alpha, r.sampler, *swept)] = getattr(r, col, math.nan)
     for r in ert.itertuples(index=False):
         metrics[metric_key(f"aRT_{r.unit}", r.alpha, r.sampler)] = r.aRT

@@ -183,9 +183,9 @@ def _order(df: pd.DataFrame) -> pd.DataFrame:
 
 def rates(df: pd.DataFrame, betas, references: tuple[str, ...] = ("uniform", "nearest_alpha")) -> pd.DataFrame:
     """Per (α, sampler, β): high-quality count k of n starts, rate (%), 95 % Wilson interval, and the one-sided
-    Fisher exact p-value of "this arm's rate is higher than the reference's" for each reference present
-    (columns ``p_gt_<reference>``; NaN for the reference itself).  With one β this is the rate table; with
-    several, the β sweep."""
+    Fisher exact p-values of "this arm's rate is higher than the reference's" (``p_gt_<reference>``) and
+    "… lower than the reference's" (``p_lt_<reference>``) for each reference present (NaN for the reference
+    itself).  With one β this is the rate table; with several, the β sweep."""
     rows = []
     for alpha, ga in df.groupby("alpha", sort=True):
         for beta in betas:
@@ -197,11 +197,14 @@ def rates(df: pd.DataFrame, betas, references: tuple[str, ...] = ("uniform", "ne
                 row = {"alpha": alpha, "sampler": sampler, "beta_kg": float(beta), "n": int(n[sampler]),
                        "k_high_quality": int(k[sampler]), "percent": 100 * k[sampler] / n[sampler],
                        "ci95_low": lo, "ci95_high": hi}
+                mine = (int(k[sampler]), int(n[sampler]))
                 for ref in references:
-                    row[f"p_gt_{ref}"] = (
-                        fisher_greater(int(k[sampler]), int(n[sampler]), int(k[ref]), int(n[ref]))
-                        if ref in n.index and ref != sampler else math.nan
-                    )
+                    if ref not in n.index or ref == sampler:
+                        row[f"p_gt_{ref}"] = row[f"p_lt_{ref}"] = math.nan
+                        continue
+                    theirs = (int(k[ref]), int(n[ref]))
+                    row[f"p_gt_{ref}"] = fisher_greater(*mine, *theirs)
+                    row[f"p_lt_{ref}"] = fisher_greater(*theirs, *mine)
                 rows.append(row)
     return pd.DataFrame(rows)
 

@@ -119,37 +119,51 @@ def _colour(s: str) -> str:
     return f"C{SAMPLER_NAMES.index(s) % 10}" if s in SAMPLER_NAMES else "k"
 
 
+#: Rows of the speed-up figure: (column of the aRT table, unit, what the ratio is against).
+SPEEDUP_ROWS = (("speedup", "iterations", "uniform"), ("versus_reuse", "iterations", "nearest-α reuse"),
+                ("speedup", "cpu_s", "uniform"))
+
+
+def _ratio_panel(ax, t: pd.DataFrame, column: str) -> None:
+    """Bars of ``column`` (a ratio of aRTs) per sampler of ``t`` with its bootstrap interval; log scale, ∞ drawn
+    at the top."""
+    order = _samplers(t.reset_index())
+    finite = t[column].replace([np.inf, -np.inf], np.nan)
+    top = float(np.nanmax([finite.max(), t[f"{column}_ci95_high"].replace(np.inf, np.nan).max(), 1.0]) * 2)
+    for x, s in enumerate(order):
+        v = t.loc[s, column]
+        lo, hi = t.loc[s, f"{column}_ci95_low"], t.loc[s, f"{column}_ci95_high"]
+        y = top if np.isinf(v) else v
+        if np.isfinite(y) and y > 0:
+            ax.bar(x, y, color=_colour(s), alpha=0.7)
+        if np.isfinite(lo) and lo > 0:
+            ax.plot([x, x], [lo, top if np.isinf(hi) else hi], color="k", lw=1.2)
+        ax.text(x, y if np.isfinite(y) and y > 0 else 1, f"n_HQ={int(t.loc[s, 'k_high_quality'])}",
+                ha="center", va="bottom", fontsize=7)
+    ax.axhline(1.0, color="grey", ls="--", lw=0.8)
+    ax.set_yscale("log")
+    ax.set_xticks(range(len(order)), [_label(s) for s in order], rotation=35, ha="right", fontsize=7)
+
+
 def ablation_speedups(ert: pd.DataFrame) -> Figure:
-    """Speed-up aRT_uniform ÷ aRT_arm (bootstrap 95 % interval), per α (columns) and unit (rows: iterations,
-    CPU s); log scale, ∞ drawn as an arrow at the top."""
+    """aRT ratios with bootstrap 95 % intervals, per α (columns): against uniform in iterations, against
+    nearest-α reuse in iterations (when the reuse arm ran; above 1 the arm beats reuse), against uniform in
+    CPU s (rows)."""
     alphas = distinct_alphas(ert["alpha"])
-    units = [u for u in ("iterations", "cpu_s") if u in set(ert["unit"])]
-    fig = Figure(figsize=(5 * len(alphas), 3.6 * len(units)), layout="tight")
-    axes = fig.subplots(len(units), len(alphas), squeeze=False)
-    for i, unit in enumerate(units):
+    rows = [(c, u, who) for c, u, who in SPEEDUP_ROWS
+            if u in set(ert["unit"]) and c in ert.columns and ert.loc[ert["unit"] == u, c].notna().any()]
+    fig = Figure(figsize=(5 * len(alphas), 3.6 * len(rows)), layout="tight")
+    axes = fig.subplots(len(rows), len(alphas), squeeze=False)
+    for i, (column, unit, who) in enumerate(rows):
         for j, alpha in enumerate(alphas):
-            ax = axes[i, j]
             this_alpha = rows_at(ert, alpha)
             t = this_alpha[this_alpha["unit"] == unit].set_index("sampler")
-            order = _samplers(t.reset_index())
-            finite = t["speedup"].replace([np.inf, -np.inf], np.nan)
-            top = float(np.nanmax([finite.max(), t["speedup_ci95_high"].replace(np.inf, np.nan).max(), 1.0]) * 2)
-            for x, s in enumerate(order):
-                v = t.loc[s, "speedup"]
-                lo, hi = t.loc[s, "speedup_ci95_low"], t.loc[s, "speedup_ci95_high"]
-                y = top if np.isinf(v) else v
-                if np.isfinite(y) and y > 0:
-                    ax.bar(x, y, color=_colour(s), alpha=0.7)
-                if np.isfinite(lo) and lo > 0:
-                    ax.plot([x, x], [lo, top if np.isinf(hi) else hi], color="k", lw=1.2)
-                ax.text(x, y if np.isfinite(y) and y > 0 else 1, f"n_HQ={int(t.loc[s, 'k_high_quality'])}",
-                        ha="center", va="bottom", fontsize=7)
-            ax.axhline(1.0, color="grey", ls="--", lw=0.8)
-            ax.set_yscale("log")
-            ax.set_xticks(range(len(order)), [_label(s) for s in order], rotation=35, ha="right", fontsize=7)
-            ax.set_ylabel(f"speed-up vs uniform ({'IPOPT iterations' if unit == 'iterations' else 'CPU s'})")
-            ax.set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
-    fig.suptitle("Expected running time per high-quality solution: aRT(uniform) ÷ aRT(arm), bootstrap 95 % CI")
+            _ratio_panel(axes[i, j], t, column)
+            axes[i, j].set_ylabel(f"aRT({who}) ÷ aRT(arm)\n({'IPOPT iterations' if unit == 'iterations' else 'CPU s'})",
+                                  fontsize=8)
+            axes[i, j].set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
+    fig.suptitle("Expected running time per high-quality solution, as ratios: above 1 the arm is faster "
+                 "(bootstrap 95 % CI)")
     return fig
 
 
