@@ -108,8 +108,16 @@ def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | P
     }
     write_json(manifest, dst / MANIFEST)
     with atomic_path(dst / README) as tmp:
-        tmp.write_text(_readme(manifest, dst))
+        tmp.write_text(_readme(manifest, _shown(dst, run)))
     return manifest
+
+
+def _shown(dest: Path, run: Path) -> Path:
+    """``dest`` as a reader of the repository types it: relative to the run directory when it lies inside."""
+    try:
+        return dest.resolve().relative_to(run.resolve())
+    except ValueError:
+        return dest
 
 
 def _readme(manifest: dict, dest: Path) -> str:

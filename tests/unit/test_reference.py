@@ -23,3 +23,15 @@ def test_committed_study_reference_matches_its_manifest():
     cells = [t for t in manifest["solve_tables"] if t["file"].startswith("cr3bp/ablation/")]
     assert sum(t["rows"] for t in cells if "/fraction=" not in t["file"]) >= 8 * 2 * 200
     assert manifest["cpu_hours"]["total"] > 0
+
+
+def test_committed_readme_names_the_reference_as_the_repository_sees_it():
+    readme = (STUDY / "README.md").read_text()
+    assert "--dest reference/study --check" in readme and str(ROOT) not in readme
+
+
+def test_dest_is_shown_relative_to_the_run_when_inside_it(tmp_path):
+    from amorgs.reference import _shown
+
+    assert _shown(tmp_path / "reference" / "x", tmp_path) == Path("reference/x")
+    assert _shown(tmp_path / "elsewhere", tmp_path / "run") == tmp_path / "elsewhere"
