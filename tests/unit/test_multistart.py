@@ -1,10 +1,21 @@
 """The multistart pool: determinism across worker counts, and crashes/hangs cost one row each."""
 
+import contextlib
+import multiprocessing as mp
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
 import numpy as np
 import pydantic
 import pytest
 
-from amorgs.solvers.multistart import options_digest, run_multistart, solve_guesses, worker_timeout_s
+from amorgs.solvers.multistart import (
+    detach_worker, kill_worker, options_digest, run_multistart, solve_guesses, worker_timeout_s,
+)
 from amorgs.solvers.options import BfgsOptions, IpoptOptions
 
 CRASHY = "crashy_problem:CrashyProblem"
@@ -58,3 +69,64 @@ def test_worker_timeout_follows_the_wall_cap_and_untyped_options_hash():
     assert worker_timeout_s({"max_wall_s": 10}) == 50.0  # an untyped user-defined problem's mapping
     assert options_digest("crashy", {"a": 1}) == options_digest("crashy", {"a": 1}) != options_digest("crashy", None)
     assert options_digest("dejong", BfgsOptions()) == BfgsOptions().digest()
+
+
+# --------------------------------------------------------------------------- worker process groups
+def _gone(pid: int, within_s: float = 10.0) -> bool:
+    """True once ``pid`` no longer runs: absent, or a zombie waiting for init to reap it."""
+    deadline = time.monotonic() + within_s
+    while time.monotonic() < deadline:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except FileNotFoundError:
+            return True
+        if state in ("Z", "X"):
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _worker_with_a_child(pid_file: str) -> None:
+    """A pool worker that, like one compiling its solver, has started a long-running child."""
+    detach_worker()
+    child = subprocess.Popen(["sleep", "600"])
+    Path(pid_file).write_text(str(child.pid))
+    time.sleep(600)
+
+
+def _pool_with_a_worker(pid_file: str) -> None:
+    worker = mp.get_context("fork").Process(target=_worker_with_a_child, args=(pid_file,))
+    worker.start()
+    Path(pid_file + ".worker").write_text(str(worker.pid))
+    time.sleep(600)
+
+
+def _wait_for(path: Path) -> int:
+    deadline = time.monotonic() + 30
+    while not (path.is_file() and path.read_text()):
+        assert time.monotonic() < deadline, f"{path} never written"
+        time.sleep(0.05)
+    return int(path.read_text())
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="process groups and /proc: Linux")
+def test_killing_a_worker_kills_the_compiler_it_started(tmp_path):
+    proc = mp.get_context("fork").Process(target=_worker_with_a_child, args=(str(tmp_path / "pid"),))
+    proc.start()
+    child = _wait_for(tmp_path / "pid")
+    assert os.getpgid(proc.pid) == proc.pid and os.getpgid(child) == proc.pid
+    kill_worker(proc)
+    assert not proc.is_alive() and _gone(child), "the worker's child outlived it"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG: Linux")
+def test_a_worker_dies_with_its_pool(tmp_path):
+    pool = mp.get_context("fork").Process(target=_pool_with_a_worker, args=(str(tmp_path / "pid"),))
+    pool.start()
+    worker = _wait_for(tmp_path / "pid.worker")
+    child = _wait_for(tmp_path / "pid")
+    os.kill(pool.pid, signal.SIGKILL)  # kill -9 of the pool: its worker is in another process group
+    pool.join(5)
+    assert _gone(worker), "the worker outlived its pool"
+    with contextlib.suppress(ProcessLookupError):  # the worker's own child is orphaned, not killed: tidy up
+        os.kill(child, signal.SIGKILL)

@@ -6,17 +6,25 @@ solver's options travel typed end to end: the caller's options object (or a mapp
 problem's ``options_type``, see :mod:`amorgs.solvers.options`) is validated in the parent, pickled to every
 worker and handed to the problem's local solver as it is.  The guesses are drawn in the parent from
 ``numpy.random.default_rng(seed)`` before any work starts, and every solve is deterministic (iteration cap
-first, wall cap only as a safety net), so the table is identical for any number of workers.  A worker that crashes or hangs past ``hard_timeout_s`` is killed and replaced; its
-guess becomes one row with status ``crashed`` / ``timeout`` — it never takes the job down.
+first, wall cap only as a safety net), so the table is identical for any number of workers.  A worker that
+crashes or hangs past ``hard_timeout_s`` is killed and replaced; its guess becomes one row with status
+``crashed`` / ``timeout`` — it never takes the job down.
+
+Every worker leads its own process group, and the pool kills the whole group: a worker killed while gcc
+builds its solver (:mod:`amorgs.solvers.codegen`) takes the compiler with it instead of leaving it running
+under init.  On Linux a worker also dies with the process that started it (``PR_SET_PDEATHSIG``), so a
+pool killed outright (``kill -9``, Snakemake killing a job's process group) leaves no worker behind.
 """
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import json
 import math
 import multiprocessing as mp
 import os
+import signal
 import sys
 import time
 from collections.abc import Mapping
@@ -62,8 +70,35 @@ def worker_timeout_s(options: OptionsLike) -> float:
     return UNCAPPED_TIMEOUT_S if wall is None else 2 * float(wall) + 30.0
 
 
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def detach_worker() -> None:
+    """In a freshly started worker: lead a new process group (so :func:`kill_worker` reaches the processes the
+    worker starts, e.g. gcc) and, on Linux, receive SIGKILL when the parent dies (the group no longer shares
+    the parent's, so a kill of the parent's group would otherwise miss it)."""
+    parent = os.getppid()
+    os.setpgrp()
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+        if os.getppid() != parent:  # the parent died before the request took effect
+            os._exit(1)
+
+
+def kill_worker(proc) -> None:
+    """SIGKILL a worker started with :func:`detach_worker` together with every process of its group (they
+    may outlive it, e.g. a compiler it started), then reap it."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):  # group gone (or not yet formed): the worker alone
+        if proc.is_alive():
+            proc.kill()
+    proc.join(5)
+
+
 def _worker(conn, problem_name: str, options: OptionsLike) -> None:
     """Worker loop: build the solver, announce readiness, then answer (index, x0, alpha) tasks."""
+    detach_worker()
     try:
         solver = get_problem(problem_name).make_local_solver(options)
         digest = getattr(solver, "options_hash", None) or options_digest(problem_name, options)
@@ -101,9 +136,7 @@ class _Slot:
         self.since = time.monotonic()
 
     def kill(self) -> None:
-        if self.proc.is_alive():
-            self.proc.kill()
-        self.proc.join(5)
+        kill_worker(self.proc)
         self.conn.close()
 
 
