@@ -259,6 +259,44 @@ def _interrupt_config() -> dict:
     return cfg
 
 
+def _planned(res: subprocess.CompletedProcess) -> dict[str, int]:
+    """Jobs per rule in a dry run's "Job stats" table (empty when there is nothing to be done)."""
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    lines = (res.stdout + res.stderr).splitlines()
+    if "Job stats:" not in lines:
+        assert "Nothing to be done" in res.stdout + res.stderr, res.stdout[-3000:] + res.stderr[-3000:]
+        return {}
+    table = lines[lines.index("Job stats:") + 3:]
+    planned = {}
+    for line in table:
+        if not line.strip():
+            break
+        rule, count = line.split()
+        planned[rule] = int(count)
+    planned.pop("total", None)
+    return planned
+
+
+def test_a_changed_setting_reruns_exactly_the_jobs_it_reaches(tmp_path):
+    """A config change reruns the jobs whose settings it changes, and only those (params.settings): the
+    settings in params.job alone would not do it, since Snakemake ignores params derived from inputs."""
+    cfg = _interrupt_config()
+    cfg["problems"]["dejong"]["generate"].update(shards=2, starts_per_shard=5)
+    cfg["mlflow"]["enabled"] = False
+    wd = workdir(tmp_path, cfg)
+    run = ["results/dejong/high_quality.parquet", "--configfile", "config/test.yaml"]
+    assert snakemake(wd, *run).returncode == 0
+    assert _planned(snakemake(wd, "-n", *run)) == {}
+
+    cfg["problems"]["dejong"]["filter"]["max_objective"] = 5.0  # reaches the filter only
+    (wd / "config" / "test.yaml").write_text(yaml.safe_dump(cfg))
+    assert _planned(snakemake(wd, "-n", *run)) == {"filter": 1}
+
+    cfg["problems"]["dejong"]["generate"]["starts_per_shard"] = 6  # every shard, then what reads them
+    (wd / "config" / "test.yaml").write_text(yaml.safe_dump(cfg))
+    assert _planned(snakemake(wd, "-n", *run)) == {"generate": 2, "merge": 1, "filter": 1}
+
+
 @pytest.mark.slow
 def test_killed_run_resumes_without_losing_or_duplicating_rows(tmp_path):
     from mlflow.tracking import MlflowClient

@@ -20,6 +20,7 @@ rule ablation_cell:
         runtime=CFG.ablation.runtime_min,
     params:
         job=step_job("ablation_cell"),
+        settings=step_settings("ablation_cell"),
     shell:
         STEP
 
@@ -39,6 +40,7 @@ rule ablation_cell_replicate:
         runtime=CFG.ablation.runtime_min,
     params:
         job=step_job("ablation_cell_replicate"),
+        settings=step_settings("ablation_cell_replicate"),
     shell:
         STEP
 
@@ -58,6 +60,7 @@ rule ablation_cell_fraction:
         runtime=CFG.ablation.runtime_min,
     params:
         job=step_job("ablation_cell_fraction"),
+        settings=step_settings("ablation_cell_fraction"),
     shell:
         STEP
 
@@ -82,5 +85,6 @@ rule ablation_report:
         runtime=CFG.resources.figure.runtime_min,
     params:
         job=step_job("ablation_report"),
+        settings=step_settings("ablation_report"),
     shell:
         STEP

@@ -18,5 +18,6 @@ rule analyze_cr3bp:
         runtime=CFG.resources.analyze.runtime_min,
     params:
         job=step_job("analyze_cr3bp"),
+        settings=step_settings("analyze_cr3bp"),
     shell:
         STEP

@@ -3,8 +3,9 @@
 #
 # Each workflow rule runs one step of amorgs.steps, of the same name. Its outputs come from the step
 # (step_outputs); its settings, the step's typed slice of the config, reach the job as JSON with the
-# wildcards and the named inputs and outputs Snakemake resolved (params.job, so a changed setting re-runs
-# the job); and its command is STEP, `python -m amorgs step --job ...`, which tags the job's MLflow run with
+# wildcards and the named inputs and outputs Snakemake resolved (params.job); the same settings alone are
+# params.settings, which is what re-runs a job whose settings changed (Snakemake's params trigger ignores
+# params derived from inputs or outputs, like params.job); and its command is STEP, `python -m amorgs step --job ...`, which tags the job's MLflow run with
 # those wildcards.  Rules declare only their inputs, log and resources.
 import os
 import sys
@@ -60,6 +61,16 @@ def step_job(name):
 
     job.step = name
     return job
+
+
+def step_settings(name):
+    """params.settings of the rule called ``name``, its job's settings as JSON from config and wildcards only
+    (steps.settings_param), so that Snakemake re-runs the job when they change."""
+
+    def settings(wildcards):
+        return steps.settings_param(name, CFG, wildcards)
+
+    return settings
 
 
 def step_outputs(rule):

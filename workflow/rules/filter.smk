@@ -16,5 +16,6 @@ rule filter:
         runtime=CFG.resources.filter.runtime_min,
     params:
         job=step_job("filter"),
+        settings=step_settings("filter"),
     shell:
         STEP

@@ -16,6 +16,7 @@ rule generate:
         runtime=lambda w: getattr(CFG.problems, w.problem).generate.runtime_min,
     params:
         job=step_job("generate"),
+        settings=step_settings("generate"),
     shell:
         STEP
 
@@ -36,5 +37,6 @@ rule merge:
         runtime=CFG.resources.merge.runtime_min,
     params:
         job=step_job("merge"),
+        settings=step_settings("merge"),
     shell:
         STEP

@@ -16,6 +16,7 @@ rule fig02_foxholes:
         runtime=CFG.resources.figure.runtime_min,
     params:
         job=step_job("fig02_foxholes"),
+        settings=step_settings("fig02_foxholes"),
     shell:
         STEP
 
@@ -36,5 +37,6 @@ rule fig16_dejong_predictions:
         runtime=CFG.resources.figure.runtime_min,
     params:
         job=step_job("fig16_dejong_predictions"),
+        settings=step_settings("fig16_dejong_predictions"),
     shell:
         STEP

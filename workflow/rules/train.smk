@@ -20,6 +20,7 @@ rule train_dejong_cvae:
         runtime=CFG.resources.train.runtime_min,
     params:
         job=step_job("train_dejong_cvae"),
+        settings=step_settings("train_dejong_cvae"),
     shell:
         STEP
 
@@ -39,6 +40,7 @@ rule predict_dejong_cvae:
         runtime=CFG.resources.predict.runtime_min,
     params:
         job=step_job("predict_dejong_cvae"),
+        settings=step_settings("predict_dejong_cvae"),
     shell:
         STEP
 
@@ -58,6 +60,7 @@ rule train_cr3bp:
         runtime=CFG.resources.train.runtime_min,
     params:
         job=step_job("train_cr3bp"),
+        settings=step_settings("train_cr3bp"),
     shell:
         STEP
 
@@ -77,6 +80,7 @@ rule train_cr3bp_fraction:
         runtime=CFG.resources.train.runtime_min,
     params:
         job=step_job("train_cr3bp_fraction"),
+        settings=step_settings("train_cr3bp_fraction"),
     shell:
         STEP
 
@@ -96,6 +100,7 @@ rule train_cr3bp_replicate:
         runtime=CFG.resources.train.runtime_min,
     params:
         job=step_job("train_cr3bp_replicate"),
+        settings=step_settings("train_cr3bp_replicate"),
     shell:
         STEP
 
@@ -117,5 +122,6 @@ rule predict_cr3bp:
         runtime=CFG.resources.predict.runtime_min,
     params:
         job=step_job("predict_cr3bp"),
+        settings=step_settings("predict_cr3bp"),
     shell:
         STEP

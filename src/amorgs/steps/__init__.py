@@ -179,9 +179,21 @@ def output_templates(rule: str) -> Outputs:
 # ---------------------------------------------------------------------------------------- running a job
 
 
+def job_settings(rule: str, cfg: Config, wildcards: Wildcards) -> dict:
+    """The settings of one job of ``rule``: its step's typed slice of ``cfg`` for these wildcards, as JSON data."""
+    wildcards = dict(wildcards.items())  # Snakemake's Wildcards is a list: `"key" in` it tests the values
+    return registry()[rule].settings(cfg, wildcards).model_dump(mode="json")
+
+
+def settings_param(rule: str, cfg: Config, wildcards: Wildcards) -> str:
+    """``params.settings`` of a job: :func:`job_settings` as sorted JSON, from the config and the wildcards
+    only.  Snakemake's params rerun trigger skips params derived from inputs or outputs, as ``params.job``
+    is, so this one is what makes a changed setting rerun exactly the jobs it reaches."""
+    return json.dumps(job_settings(rule, cfg, wildcards), sort_keys=True)
+
+
 def job_spec(rule: str, cfg: Config, wildcards: Wildcards, input: Mapping, output: Mapping, threads: int) -> str:
     """The JSON a rule hands to ``amorgs step`` (Snakemake's named inputs and outputs, the step's settings)."""
-    step = registry()[rule]
     wildcards = dict(wildcards.items())  # Snakemake's Wildcards is a list: `"key" in` it tests the values
     return json.dumps(
         {
@@ -190,7 +202,7 @@ def job_spec(rule: str, cfg: Config, wildcards: Wildcards, input: Mapping, outpu
             "input": {k: (v if isinstance(v, str) else list(v)) for k, v in input.items()},
             "output": {k: (v if isinstance(v, str) else list(v)) for k, v in output.items()},
             "threads": int(threads),
-            "settings": step.settings(cfg, wildcards).model_dump(mode="json"),
+            "settings": job_settings(rule, cfg, wildcards),
         },
         sort_keys=True,
     )
