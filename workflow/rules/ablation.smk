@@ -19,8 +19,7 @@ rule ablation_cell:
         mem_mb=CFG.ablation.mem_mb,
         runtime=CFG.ablation.runtime_min,
     params:
-        job=step_job("ablation_cell"),
-        settings=step_settings("ablation_cell"),
+        **step_params("ablation_cell"),
     shell:
         STEP
 
@@ -39,8 +38,7 @@ rule ablation_cell_replicate:
         mem_mb=CFG.ablation.mem_mb,
         runtime=CFG.ablation.runtime_min,
     params:
-        job=step_job("ablation_cell_replicate"),
-        settings=step_settings("ablation_cell_replicate"),
+        **step_params("ablation_cell_replicate"),
     shell:
         STEP
 
@@ -59,8 +57,7 @@ rule ablation_cell_fraction:
         mem_mb=CFG.ablation.mem_mb,
         runtime=CFG.ablation.runtime_min,
     params:
-        job=step_job("ablation_cell_fraction"),
-        settings=step_settings("ablation_cell_fraction"),
+        **step_params("ablation_cell_fraction"),
     shell:
         STEP
 
@@ -84,7 +81,6 @@ rule ablation_report:
         mem_mb=CFG.resources.figure.mem_mb,
         runtime=CFG.resources.figure.runtime_min,
     params:
-        job=step_job("ablation_report"),
-        settings=step_settings("ablation_report"),
+        **step_params("ablation_report"),
     shell:
         STEP

@@ -17,7 +17,6 @@ rule analyze_cr3bp:
         mem_mb=CFG.resources.analyze.mem_mb,
         runtime=CFG.resources.analyze.runtime_min,
     params:
-        job=step_job("analyze_cr3bp"),
-        settings=step_settings("analyze_cr3bp"),
+        **step_params("analyze_cr3bp"),
     shell:
         STEP

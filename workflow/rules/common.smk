@@ -4,9 +4,8 @@
 # Each workflow rule runs one step of amorgs.steps, of the same name. Its outputs come from the step
 # (step_outputs); its settings, the step's typed slice of the config, reach the job as JSON with the
 # wildcards and the named inputs and outputs Snakemake resolved (params.job); the same settings alone are
-# params.settings, which is what re-runs a job whose settings changed (Snakemake's params trigger ignores
-# params derived from inputs or outputs, like params.job); and its command is STEP, `python -m amorgs step --job ...`, which tags the job's MLflow run with
-# those wildcards.  Rules declare only their inputs, log and resources.
+# params.settings, which re-runs a job whose settings changed (step_params); and its command is STEP,
+# `python -m amorgs step --job ...`, which tags the job's MLflow run with those wildcards.  Rules declare only their inputs, log and resources.
 import os
 import sys
 from pathlib import Path
@@ -63,14 +62,15 @@ def step_job(name):
     return job
 
 
-def step_settings(name):
-    """params.settings of the rule called ``name``, its job's settings as JSON from config and wildcards only
-    (steps.settings_param), so that Snakemake re-runs the job when they change."""
+def step_params(name):
+    """The params of the rule called ``name``, job (step_job) and settings, its job's settings as JSON from
+    config and wildcards only (steps.settings_param); Snakemake's params trigger ignores job, which is
+    derived from inputs and outputs, so settings is what re-runs the job when they change."""
 
     def settings(wildcards):
         return steps.settings_param(name, CFG, wildcards)
 
-    return settings
+    return {"job": step_job(name), "settings": settings}
 
 
 def step_outputs(rule):

@@ -15,7 +15,6 @@ rule filter:
         mem_mb=CFG.resources.filter.mem_mb,
         runtime=CFG.resources.filter.runtime_min,
     params:
-        job=step_job("filter"),
-        settings=step_settings("filter"),
+        **step_params("filter"),
     shell:
         STEP

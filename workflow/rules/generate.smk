@@ -15,8 +15,7 @@ rule generate:
         mem_mb=lambda w: getattr(CFG.problems, w.problem).generate.mem_mb,
         runtime=lambda w: getattr(CFG.problems, w.problem).generate.runtime_min,
     params:
-        job=step_job("generate"),
-        settings=step_settings("generate"),
+        **step_params("generate"),
     shell:
         STEP
 
@@ -36,7 +35,6 @@ rule merge:
         mem_mb=CFG.resources.merge.mem_mb,
         runtime=CFG.resources.merge.runtime_min,
     params:
-        job=step_job("merge"),
-        settings=step_settings("merge"),
+        **step_params("merge"),
     shell:
         STEP

@@ -15,8 +15,7 @@ rule fig02_foxholes:
         mem_mb=CFG.resources.figure.mem_mb,
         runtime=CFG.resources.figure.runtime_min,
     params:
-        job=step_job("fig02_foxholes"),
-        settings=step_settings("fig02_foxholes"),
+        **step_params("fig02_foxholes"),
     shell:
         STEP
 
@@ -36,7 +35,6 @@ rule fig16_dejong_predictions:
         mem_mb=CFG.resources.figure.mem_mb,
         runtime=CFG.resources.figure.runtime_min,
     params:
-        job=step_job("fig16_dejong_predictions"),
-        settings=step_settings("fig16_dejong_predictions"),
+        **step_params("fig16_dejong_predictions"),
     shell:
         STEP

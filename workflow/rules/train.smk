@@ -19,8 +19,7 @@ rule train_dejong_cvae:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
     params:
-        job=step_job("train_dejong_cvae"),
-        settings=step_settings("train_dejong_cvae"),
+        **step_params("train_dejong_cvae"),
     shell:
         STEP
 
@@ -39,8 +38,7 @@ rule predict_dejong_cvae:
         mem_mb=CFG.resources.predict.mem_mb,
         runtime=CFG.resources.predict.runtime_min,
     params:
-        job=step_job("predict_dejong_cvae"),
-        settings=step_settings("predict_dejong_cvae"),
+        **step_params("predict_dejong_cvae"),
     shell:
         STEP
 
@@ -59,8 +57,7 @@ rule train_cr3bp:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
     params:
-        job=step_job("train_cr3bp"),
-        settings=step_settings("train_cr3bp"),
+        **step_params("train_cr3bp"),
     shell:
         STEP
 
@@ -79,8 +76,7 @@ rule train_cr3bp_fraction:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
     params:
-        job=step_job("train_cr3bp_fraction"),
-        settings=step_settings("train_cr3bp_fraction"),
+        **step_params("train_cr3bp_fraction"),
     shell:
         STEP
 
@@ -99,8 +95,7 @@ rule train_cr3bp_replicate:
         mem_mb=CFG.resources.train.mem_mb,
         runtime=CFG.resources.train.runtime_min,
     params:
-        job=step_job("train_cr3bp_replicate"),
-        settings=step_settings("train_cr3bp_replicate"),
+        **step_params("train_cr3bp_replicate"),
     shell:
         STEP
 
@@ -121,7 +116,6 @@ rule predict_cr3bp:
         mem_mb=CFG.resources.predict.mem_mb,
         runtime=CFG.resources.predict.runtime_min,
     params:
-        job=step_job("predict_cr3bp"),
-        settings=step_settings("predict_cr3bp"),
+        **step_params("predict_cr3bp"),
     shell:
         STEP

@@ -158,7 +158,7 @@ def check_rules(rules: Mapping[str, Any]) -> None:
     for name, job in rules.items():
         step = getattr(job, "step", None)
         if job is not None and step != name:
-            raise RuntimeError(f"rule {name} hands its job to step {step!r}: use params: job=step_job({name!r})")
+            raise RuntimeError(f"rule {name} hands its job to step {step!r}: use params: **step_params({name!r})")
     missing = sorted(set(registry()) - set(rules))
     if missing:
         raise RuntimeError(f"steps without a rule of their name: {missing}")
