@@ -51,3 +51,21 @@ def test_generate_layout_and_save_load(tmp_path):
     np.testing.assert_array_equal(load(tmp_path / "lstm.pt").generate(cond), u)
     with pytest.raises(ValueError, match="decoder"):
         ControlLSTM(LSTMConfig(hidden=10))
+
+
+@pytest.mark.parametrize("config", [LSTMConfig.small(), LSTMConfig(encoder=(5, 24), hidden=12, decoder=(24, 3))])
+def test_recurrence_equals_torch_lstm_on_the_repeated_input_sequence(config):
+    """The hand-written recurrence (input projection once per row) gives nn.LSTM's states and gradients."""
+    torch.manual_seed(3)
+    model = ControlLSTM(config)
+    h = torch.randn(7, config.encoder[-1], requires_grad=True)
+    n = config.n_steps
+    seq = torch.cat([h[:, None, :].expand(7, n, h.shape[1]), model.steps[None, :, None].expand(7, n, 1)], dim=2)
+    reference, _ = model.lstm(seq)
+    ours = model.recurrence(h)
+    torch.testing.assert_close(ours, reference, atol=1e-6, rtol=1e-5)
+    weights = torch.randn_like(reference)
+    grads_ref = torch.autograd.grad((reference * weights).sum(), [h, *model.lstm.parameters()])
+    grads_ours = torch.autograd.grad((ours * weights).sum(), [h, *model.lstm.parameters()])
+    for ref, got in zip(grads_ref, grads_ours, strict=True):
+        torch.testing.assert_close(got, ref, atol=1e-5, rtol=1e-4)

@@ -5,6 +5,12 @@ bidirectional LSTM runs over the N = 20 segments (its input at step k is the emb
 per-step decoder MLP [512, 512, 512, 3] outputs the Cartesian throttle vector u_k = ρ_k û_k ∈ [−1, 1]³
 (tanh head).  Loss: MSE on the Cartesian components (they are continuous where the angles wrap).
 
+Speed: the LSTM's input is the same embedding at every step plus k/N, so :meth:`ControlLSTM.recurrence`
+projects the embedding through the input weights once per row instead of once per step, then runs the
+standard LSTM cell (PyTorch's gate order i, f, g, o; the parameters are those of the ``nn.LSTM`` it holds, so
+checkpoints are unchanged).  Equal to ``nn.LSTM`` to float rounding (tests/unit/test_lstm.py); ≈ 1.5× faster
+training at the paper widths on CPU (docs/performance.md, "Training").
+
 Normalisation: the conditioning is mapped to [0, 1] with a :class:`~amorgs.models.cvae.Normalizer` fitted on
 the training data and stored in the model's buffers; the outputs need none (already in [−1, 1]).
 ``amorgs.problems.cr3bp.controls`` (re-exported here) converts between the stored (θ, φ, ρ) layout and u.
@@ -65,11 +71,30 @@ class ControlLSTM(nn.Module):
     def forward(self, cond: Tensor) -> Tensor:
         """cond (B, 5) in physical units → controls (B, N, 3) in [−1, 1]."""
         h = self.encoder(self.normalizer.transform(cond))
-        b, n = h.shape[0], self.config.n_steps
-        seq = torch.cat([h[:, None, :].expand(b, n, h.shape[1]), self.steps[None, :, None].expand(b, n, 1)], dim=2)
-        out, _ = self.lstm(seq)
+        out = self.recurrence(h)
+        b, n = out.shape[:2]
         y = self.decoder(out.reshape(b * n, -1)).reshape(b, n, 3)
         return torch.tanh(y)
+
+    def recurrence(self, h: Tensor) -> Tensor:
+        """The bidirectional LSTM over the sequence x_k = [h, k/N], k = 0 … N−1: embedding h (B, E) →
+        hidden states (B, N, 2·hidden), forward direction first, as ``self.lstm`` on that sequence gives."""
+        n, width = self.config.n_steps, h.shape[1]
+        directions = []
+        for suffix, order in (("", range(n)), ("_reverse", range(n - 1, -1, -1))):
+            w_in = getattr(self.lstm, f"weight_ih_l0{suffix}")  # (4·hidden, E + 1); last column: k/N
+            w_rec = getattr(self.lstm, f"weight_hh_l0{suffix}").T
+            constant = h @ w_in[:, :width].T + getattr(self.lstm, f"bias_ih_l0{suffix}") \
+                + getattr(self.lstm, f"bias_hh_l0{suffix}")
+            state = cell = h.new_zeros(h.shape[0], self.config.hidden)
+            states: list[Tensor] = [h] * n
+            for k in order:
+                gate_i, gate_f, gate_g, gate_o = (constant + self.steps[k] * w_in[:, width] + state @ w_rec).chunk(4, 1)
+                cell = torch.sigmoid(gate_f) * cell + torch.sigmoid(gate_i) * torch.tanh(gate_g)
+                state = torch.sigmoid(gate_o) * torch.tanh(cell)
+                states[k] = state
+            directions.append(torch.stack(states, dim=1))
+        return torch.cat(directions, dim=2)
 
     def loss(self, x: Tensor, cond: Tensor) -> tuple[Tensor, dict[str, float]]:
         """MSE between generated and true Cartesian controls; x is (B, N, 3) or (B, 3N)."""
