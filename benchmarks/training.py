@@ -1,12 +1,13 @@
-"""Training cost of the CR3BP models: wall seconds per epoch, per model and preset, on the committed library.
+"""Training cost of the CR3BP models: wall seconds per epoch, per model and preset, on the library.
 
 The three models of the ablation (``amorgs.models.cr3bp_models.TRAINERS``: the GMM-prior CVAE, the vanilla
 CVAE, the control LSTM) are trained for a few epochs each on the high-quality rows (m_f ≥ β = 415 kg) of the
-training α of the committed library, at the ``small`` and ``paper`` widths (Tables 4–5), with the given batch
-size and torch thread count; the median epoch time is reported, the first epoch (warm-up) excluded.  For the
-LSTM the reference recurrence (``torch.nn.LSTM`` on the repeated input sequence, what
-``ControlLSTM.recurrence`` replaces) is timed too, on the same rows, in alternating rounds.  Then the cost of a full training at the
-given epochs is projected.  Prints the table and writes it to ``docs/performance.md`` (section ``training``).
+training α of the library (default data/library), at the ``small`` and ``paper`` widths (Tables 4–5), with
+the given batch size and torch thread count; the median epoch time is reported, the first epoch (warm-up)
+excluded.  For the LSTM the reference recurrence (``torch.nn.LSTM`` on the repeated input sequence, what
+``ControlLSTM.recurrence`` replaces) is timed too, on the same rows, in alternating rounds.  Then the cost of
+a full training at the paper's epochs is projected.  Prints the table and writes it to
+``docs/performance.md`` (section ``training``).
 Reproduce with::
 
     python benchmarks/training.py                   # data/library, 2 threads, full batch, 4 timed epochs
@@ -95,7 +96,7 @@ def main() -> None:
             print(table[-1], flush=True)
     cmd = "python benchmarks/training.py " + " ".join(sys.argv[1:])
     text = (f"Command: `{cmd}` — {len(hq)} high-quality rows (m_f ≥ {problem.filter.min_final_mass_kg:g} kg) at "
-            f"the {len(problem.alphas.train_values())} training α of the committed library, batch size "
+            f"the {len(problem.alphas.train_values())} training α of the library in --library-dir, batch size "
             f"{min(args.batch_size, len(hq))}, {args.threads} torch threads, median of {args.epochs - 1} epochs "
             f"after one warm-up (LSTM comparison: median of {args.rounds} alternating rounds).\n\n" + markdown(table))
     print(text)
