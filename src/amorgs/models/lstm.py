@@ -8,8 +8,8 @@ per-step decoder MLP [512, 512, 512, 3] outputs the Cartesian throttle vector u_
 Speed: the LSTM's input is the same embedding at every step plus k/N, so :meth:`ControlLSTM.recurrence`
 projects the embedding through the input weights once per row instead of once per step, then runs the
 standard LSTM cell (PyTorch's gate order i, f, g, o; the parameters are those of the ``nn.LSTM`` it holds, so
-checkpoints are unchanged).  Equal to ``nn.LSTM`` to float rounding (tests/unit/test_lstm.py); 1.4× (paper) to 1.75× (small) faster
-training per epoch on CPU (docs/performance.md, "Training the CR3BP models").
+checkpoints are unchanged).  Equal to ``nn.LSTM`` to float rounding (tests/unit/test_lstm.py); per training
+epoch on CPU 1.4× (paper widths) to 1.75× (small) faster (docs/performance.md, "Training the CR3BP models").
 
 Normalisation: the conditioning is mapped to [0, 1] with a :class:`~amorgs.models.cvae.Normalizer` fitted on
 the training data and stored in the model's buffers; the outputs need none (already in [−1, 1]).
