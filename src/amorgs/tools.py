@@ -59,7 +59,7 @@ def cmd_library_grow(args: argparse.Namespace) -> None:
     from amorgs.data.library_grow import grow
 
     grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice,
-         alphas=args.alphas)
+         alphas=args.alphas, until_converged=args.until_converged)
 
 
 def cmd_boundary_conditions(args: argparse.Namespace) -> None:
@@ -198,6 +198,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--nice", type=int, default=19, help="niceness added before starting (0: none)")
     p.add_argument("--alphas", type=float, nargs="+", default=None,
                    help="grow only these library α (e.g. the focus α 1.0 of the structure analysis); default: all")
+    p.add_argument("--until-converged", type=int, default=None, metavar="N",
+                   help="each batch grows only the α with fewer than N verified converged solutions; "
+                        "stop when none is left")
     p.set_defaults(func=cmd_library_grow)
 
     p = sub.add_parser("boundary-conditions", help="recompute (or --check) the CR3BP boundary conditions")

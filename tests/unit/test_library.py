@@ -199,6 +199,23 @@ def test_focused_batches_grow_only_the_chosen_alpha(tmp_path):
         batch_targets(CONFIG, LIBRARY, "cr3bp", 0, alphas=[0.33])
 
 
+def test_grow_until_converged_picks_the_short_alphas_and_stops_when_none_is_left(tmp_path):
+    from amorgs.data.library_grow import grow, short_alphas
+
+    per_alpha = {e["alpha"]: e["converged"] for e in read_manifest(LIBRARY, "cr3bp")["per_alpha"]}
+    target = sorted(per_alpha.values())[len(per_alpha) // 2]  # about half the α lie below it
+    short = short_alphas(CONFIG, LIBRARY, "cr3bp", target)
+    assert sorted(short) == [a for a in sorted(per_alpha) if per_alpha[a] < target] and 0 < len(short) < len(per_alpha)
+    assert short_alphas(CONFIG, LIBRARY, "cr3bp", target, alphas=[1.0, short[0]]) == [short[0]]
+    assert sorted(short_alphas(CONFIG, tmp_path / "none", "cr3bp", 1)) == sorted(per_alpha)  # an empty library: all
+    said = []
+    # every α already holds ≥ 1 converged solution: nothing to grow, no Snakemake started
+    assert grow(CONFIG, LIBRARY, "cr3bp", tmp_path / "work", batches=3, niceness=0, log=said.append,
+                until_converged=1) == []
+    assert said == ["library-grow: every α holds ≥ 1 converged solutions, stopping"]
+    assert not (tmp_path / "work").exists()
+
+
 def test_library_export_cli_prints_one_line_for_a_foreign_shard(tmp_path):
     solutions = real_shards(tmp_path, n=1)
     shard = next(solutions.glob("alpha=*/shard-*.parquet"))

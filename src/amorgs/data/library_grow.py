@@ -22,7 +22,7 @@ from amorgs import layout
 from amorgs.alphas import alpha_label
 from amorgs.config import load_config
 from amorgs.errors import ConfigError
-from amorgs.data.library import export_library, held_shards
+from amorgs.data.library import export_library, held_shards, read_manifest
 
 
 def grown_alphas(config_file: str | Path, problem: str, alphas: list[float] | None = None) -> list[str]:
@@ -60,6 +60,15 @@ def next_batch(config_file: str | Path, library_dir: str | Path, problem: str,
     return batch
 
 
+def short_alphas(config_file: str | Path, library_dir: str | Path, problem: str, target: int,
+                 alphas: list[float] | None = None) -> list[float]:
+    """The α (of ``alphas``, default every library α) whose verified converged solutions in the library's
+    manifest number fewer than ``target``, in the library config's order."""
+    manifest = read_manifest(library_dir, problem) or {"per_alpha": []}
+    held = {alpha_label(e["alpha"]): e["converged"] for e in manifest.get("per_alpha", [])}
+    return [float(label) for label in grown_alphas(config_file, problem, alphas) if held.get(label, 0) < target]
+
+
 def find_snakefile(root: str | Path = ".") -> Path:
     """The workflow's Snakefile in the repository at ``root`` (where Snakemake itself would look)."""
     for candidate in ("workflow/Snakefile", "Snakefile"):
@@ -83,9 +92,12 @@ def snakemake_command(config_file: str | Path, workdir: str | Path, cores: int, 
 
 def grow(config_file: str | Path, library_dir: str | Path = "data/library", problem: str = "cr3bp",
          workdir: str | Path = "results/library-grow", cores: int = 2, batches: int = 1,
-         hours: float | None = None, niceness: int = 19, log=print, alphas: list[float] | None = None) -> list[dict]:
+         hours: float | None = None, niceness: int = 19, log=print, alphas: list[float] | None = None,
+         until_converged: int | None = None) -> list[dict]:
     """Run up to ``batches`` batches (stop starting new ones after ``hours``), exporting after each one;
-    ``alphas`` restricts the batches to those library α.
+    ``alphas`` restricts the batches to those library α.  With ``until_converged``, each batch covers only
+    the α (of ``alphas``) that still hold fewer verified converged solutions than that, and growth stops
+    once none does — so the slow, low-convergence α get the extra batches they need and the others none.
 
     Returns one export summary per batch (see :func:`export_library`).  ``niceness`` is added to this
     process's priority (and so to Snakemake's and its jobs') before anything starts.
@@ -100,9 +112,16 @@ def grow(config_file: str | Path, library_dir: str | Path = "data/library", prob
         if hours is not None and time.monotonic() - t0 > hours * 3600:
             log(f"library-grow: {hours} h elapsed, not starting another batch")
             break
-        batch = next_batch(config_file, library_dir, problem, alphas)
-        targets = batch_targets(config_file, library_dir, problem, batch, alphas)
-        log(f"library-grow: batch {batch}: {len(targets)} shard job(s) in {workdir}")
+        grown = alphas
+        if until_converged is not None:
+            grown = short_alphas(config_file, library_dir, problem, until_converged, alphas)
+            if not grown:
+                log(f"library-grow: every α holds ≥ {until_converged} converged solutions, stopping")
+                break
+        batch = next_batch(config_file, library_dir, problem, grown)
+        targets = batch_targets(config_file, library_dir, problem, batch, grown)
+        log(f"library-grow: batch {batch}: {len(targets)} shard job(s) in {workdir}"
+            + (f" (α below {until_converged} converged: {', '.join(f'{a:g}' for a in grown)})" if until_converged else ""))
         done = subprocess.run(snakemake_command(config_file, workdir, cores, targets), check=False)
         summary = export_library(solutions, library_dir, problem, config_file)
         summaries.append({"batch": batch, "snakemake_exit": done.returncode, **summary})
