@@ -9,6 +9,8 @@ with the default solver options unless a variant is chosen, and prints and write
     python benchmarks/solve.py --scaling            # 1 → 2 worker processes
     python benchmarks/solve.py --compare --jobs 2   # previous default vs new default, same seed and starts
     python benchmarks/solve.py --steps --alphas 0.5 1.0 --jobs 2 --max-wall-s 600   # default vs scale_down
+    python benchmarks/solve.py --ipopt-screen --starts 10 --alphas 1.0   # IPOPT options, one at a time
+    python benchmarks/solve.py --quasi-newton --alphas 0.1 1.0 --max-wall-s 600   # L-BFGS 30 vs SR1, history 6
 
 ``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
 the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
@@ -85,8 +87,30 @@ STEPS = {
     "scale_down + 240/coast": _with(IpoptOptions(), transcription={"scale_down": True, "steps_per_coast": 240,
                                                                    "coast_pieces": 8}),
 }
-#: ``--steps``: pairs (variant, reference) compared start by start per TOF band.
-STEPS_PAIRS = {k: STEPS_DEFAULT for k in STEPS if k != STEPS_DEFAULT}
+#: ``--quasi-newton``: the default L-BFGS (history 30) vs IPOPT's SR1 update and a short L-BFGS history.
+QN_DEFAULT = "default (L-BFGS, history 30)"
+QUASI_NEWTON = {
+    QN_DEFAULT: IpoptOptions(),
+    "SR1 update (limited_memory_update_type sr1)": IpoptOptions(ipopt_options={"limited_memory_update_type": "sr1"}),
+    "L-BFGS history 6": IpoptOptions(lbfgs_memory=6),
+}
+#: ``--ipopt-screen``: IPOPT options that leave the NLP alone, one at a time on top of the default (a cheap
+#: screen on few starts; what survives it goes to a paired comparison such as ``--quasi-newton``).
+IPOPT_SCREEN = {
+    "default": IpoptOptions(),
+    "SR1 update": IpoptOptions(ipopt_options={"limited_memory_update_type": "sr1"}),
+    "L-BFGS history 6": IpoptOptions(lbfgs_memory=6),
+    "L-BFGS history 60": IpoptOptions(lbfgs_memory=60),
+    "limited_memory_initialization scalar2": IpoptOptions(ipopt_options={"limited_memory_initialization": "scalar2"}),
+    "mu_strategy monotone": IpoptOptions(ipopt_options={"mu_strategy": "monotone"}),
+    "nlp_scaling_method none": IpoptOptions(ipopt_options={"nlp_scaling_method": "none"}),
+    "mu_oracle quality-function": IpoptOptions(ipopt_options={"mu_oracle": "quality-function"}),
+    "no watchdog (watchdog_shortened_iter_trigger 0)": IpoptOptions(ipopt_options={"watchdog_shortened_iter_trigger": 0}),
+    "bound_push = bound_frac = 1e-6": IpoptOptions(ipopt_options={"bound_push": 1e-6, "bound_frac": 1e-6}),
+}
+#: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
+#: throughput ratio and start-by-start TOF bands against the reference.
+PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT)}
 TOF_BAND_TU = 6.3
 BOOTSTRAP = 10_000
 
@@ -107,6 +131,7 @@ def summarize(df: pd.DataFrame) -> dict:
         "wall q25/50/75 converged (s)": q(conv.wall_s),
         "wall q25/50/75 all (s)": q(df.wall_s),
         "median iters converged": float(conv.iterations.median()) if len(conv) else float("nan"),
+        "total iters": int(iters),
         "ms/iter": 1000 * df.cpu_s.sum() / max(iters, 1),
         "verified per core-hour": len(conv) / cpu_h if cpu_h else float("nan"),
         "best m_f (kg)": conv.m_f.max() if len(conv) else float("nan"),
@@ -249,6 +274,10 @@ def main() -> None:
     ap.add_argument("--compare", action="store_true", help="previous default vs new default only")
     ap.add_argument("--steps", action="store_true",
                     help="default vs fewer RK8 steps at high α (scale_down, ± fewer coast steps), same starts")
+    ap.add_argument("--ipopt-screen", action="store_true",
+                    help="screen IPOPT options that leave the NLP alone, one at a time (few starts)")
+    ap.add_argument("--quasi-newton", action="store_true",
+                    help="default L-BFGS vs the SR1 update and a short L-BFGS history, same starts")
     ap.add_argument("--max-wall-s", type=float, default=None,
                     help="raise the wall-time safety net (on a loaded machine it would cut solves short)")
     ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
@@ -270,9 +299,10 @@ def main() -> None:
         write_section("scaling", text)
         return
 
-    variants = (VARIANTS if args.variants else COMPARE if args.compare else STEPS if args.steps
-                else {"default": IpoptOptions()})
-    if args.steps:  # α-major, so that the runs compared on the same starts run at about the same time
+    paired = "steps" if args.steps else "quasi_newton" if args.quasi_newton else None
+    variants = (VARIANTS if args.variants else COMPARE if args.compare else PAIRED[paired][0] if paired
+                else IPOPT_SCREEN if args.ipopt_screen else {"default": IpoptOptions()})
+    if paired:  # α-major, so that the runs compared on the same starts run at about the same time
         cells = [(label, opts, alpha) for alpha in args.alphas for label, opts in variants.items()]
     else:
         cells = [(label, opts, alpha) for label, opts in variants.items() for alpha in args.alphas]
@@ -294,9 +324,10 @@ def main() -> None:
     for df in raw:
         rows.append({"variant": df.variant.iloc[0], **summarize(df)} if len(variants) > 1 else summarize(df))
         caps += cap_table(df)
-    name = "variants" if args.variants else "compare" if args.compare else "steps" if args.steps else "default"
+    name = ("variants" if args.variants else "compare" if args.compare else "ipopt_screen" if args.ipopt_screen
+            else paired or "default")
     text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; one worker process per cell.\n\n" + markdown(rows)
-    if not args.variants and not args.compare and not args.steps:
+    if name == "default":
         text += "\nIteration cap (computed from the same solves, see the script's docstring):\n\n" + markdown(caps)
     all_raw = pd.concat(raw)
     if args.raw:  # first, so that a failure in the tables below does not lose the solves
@@ -305,13 +336,15 @@ def main() -> None:
     if abort_rows:
         text += ("\nStall abort, start by start on the same starts, per TOF band of the converged solution "
                  "(see `abort_table`):\n\n" + markdown(abort_rows))
-    if args.steps:
+    if paired:
+        reference = PAIRED[paired][1]
+        pairs = {k: reference for k in variants if k != reference}
         text += ("\nRatio of verified per core-hour (variant / default) on the same starts; 95 % interval from "
                  f"a paired bootstrap over starts ({BOOTSTRAP} resamples, seed {args.seed}; see "
-                 "`ratio_bootstrap`):\n\n" + markdown(ratio_bootstrap(all_raw, STEPS_PAIRS, args.seed)))
+                 "`ratio_bootstrap`):\n\n" + markdown(ratio_bootstrap(all_raw, pairs, args.seed)))
         text += ("\nStart by start on the same starts, per TOF band of the converged solution (6.3 TU, the "
                  "hyperplane spacing; see `band_table`):\n\n"
-                 + markdown(band_table(all_raw, STEPS_PAIRS, "converged, default", "converged, variant",
+                 + markdown(band_table(all_raw, pairs, "converged, default", "converged, variant",
                                        with_variant=True, with_moves=True)))
     print(text)
     write_section(name, text)
