@@ -126,6 +126,16 @@ def test_stall_abort_is_a_row_with_its_own_status(problem):
     assert len(stalling.last_trace) >= 6 and all(v > 0 for v in stalling.last_trace)
 
 
+def test_the_stall_monitor_is_attached_only_when_on_and_never_changes_the_iterates(problem, solver):
+    # A window no solve reaches: the monitor records every iteration but never stops one.
+    watched = problem.make_local_solver(IpoptOptions(max_iter=400, stall_window=100_000))
+    x0 = problem.sample_uniform(1.0, 1, np.random.default_rng(5))[0]
+    plain, monitored = solver.solve(x0, 1.0), watched.solve(x0, 1.0)
+    assert plain.iterations == monitored.iterations > 0 and plain.status == monitored.status
+    np.testing.assert_array_equal(plain.x, monitored.x)
+    assert solver.last_trace == [] and len(watched.last_trace) >= monitored.iterations
+
+
 def test_solution_lies_inside_the_box_and_is_a_valid_warm_start(problem, solver, solution):
     x = problem.check_guess(solution.x)
     assert np.all(x >= problem.lower) and np.all(x <= problem.upper)
