@@ -87,13 +87,6 @@ STEPS = {
     "scale_down + 240/coast": _with(IpoptOptions(), transcription={"scale_down": True, "steps_per_coast": 240,
                                                                    "coast_pieces": 8}),
 }
-#: ``--quasi-newton``: the default L-BFGS (history 30) vs IPOPT's SR1 update and a short L-BFGS history.
-QN_DEFAULT = "default (L-BFGS, history 30)"
-QUASI_NEWTON = {
-    QN_DEFAULT: IpoptOptions(),
-    "SR1 update (limited_memory_update_type sr1)": IpoptOptions(ipopt_options={"limited_memory_update_type": "sr1"}),
-    "L-BFGS history 6": IpoptOptions(lbfgs_memory=6),
-}
 #: ``--ipopt-screen``: IPOPT options that leave the NLP alone, one at a time on top of the default (a cheap
 #: screen on few starts; what survives it goes to a paired comparison such as ``--quasi-newton``).
 IPOPT_SCREEN = {
@@ -107,6 +100,13 @@ IPOPT_SCREEN = {
     "mu_oracle quality-function": IpoptOptions(ipopt_options={"mu_oracle": "quality-function"}),
     "no watchdog (watchdog_shortened_iter_trigger 0)": IpoptOptions(ipopt_options={"watchdog_shortened_iter_trigger": 0}),
     "bound_push = bound_frac = 1e-6": IpoptOptions(ipopt_options={"bound_push": 1e-6, "bound_frac": 1e-6}),
+}
+#: ``--quasi-newton``: the default L-BFGS (history 30) vs the two survivors of the screen, on the same starts.
+QN_DEFAULT = "default (L-BFGS, history 30)"
+QUASI_NEWTON = {
+    QN_DEFAULT: IPOPT_SCREEN["default"],
+    "SR1 update (limited_memory_update_type sr1)": IPOPT_SCREEN["SR1 update"],
+    "L-BFGS history 6": IPOPT_SCREEN["L-BFGS history 6"],
 }
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.

@@ -64,7 +64,7 @@ def short_alphas(config_file: str | Path, library_dir: str | Path, problem: str,
                  alphas: list[float] | None = None) -> list[float]:
     """The α (of ``alphas``, default every library α) whose verified converged solutions in the library's
     manifest number fewer than ``target``, in the library config's order."""
-    manifest = read_manifest(library_dir, problem) or {"per_alpha": []}
+    manifest = read_manifest(library_dir, problem) or {}
     held = {alpha_label(e["alpha"]): e["converged"] for e in manifest.get("per_alpha", [])}
     return [float(label) for label in grown_alphas(config_file, problem, alphas) if held.get(label, 0) < target]
 
