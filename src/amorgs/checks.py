@@ -22,9 +22,9 @@ from amorgs.data.tables import validate_solutions
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: Ablation tables a config may leave empty (ablation.iteration_caps, break_even_solutions, fraction_samplers,
-#: cr3bp_models.extra_seeds).
+#: cr3bp_models.extra_seeds, no reuse arm in ablation.samplers).
 OPTIONAL_ABLATION_TABLES = ("ablation_iteration_capped", "ablation_break_even", "ablation_learning_curve",
-                            "ablation_seeds")
+                            "ablation_seeds", "ablation_reuse_pool")
 
 
 def _check_file(path: str) -> str | None:

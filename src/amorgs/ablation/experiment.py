@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from amorgs.models.samplers import Sampler
+from amorgs.models.samplers import NearestAlphaSampler, Sampler
 from amorgs.problems import get_problem
 from amorgs.solvers.multistart import OptionsLike, records_table, solve_guesses
 
@@ -27,7 +27,9 @@ def run_cell(
     """Draw ``n`` guesses with ``default_rng(seed)`` from ``sampler`` and solve them; one row per start.
 
     ``solver_options``: the problem's options object (e.g. :class:`~amorgs.solvers.options.IpoptOptions`; a
-    mapping or ``None`` is converted).  The table is the solution table (docs/data-format.md) with a ``sampler`` column added.
+    mapping or ``None`` is converted).  The table is the solution table (docs/data-format.md) with a ``sampler``
+    column added, and for the reuse arms ``reuse_alpha`` and ``reuse_pool_size`` (the training α whose
+    high-quality rows were drawn, and how many it holds: :meth:`~amorgs.models.samplers.NearestAlphaSampler.pool`).
     """
     prob = get_problem(problem)
     guesses = sampler.sample(alpha, n, np.random.default_rng(seed))
@@ -36,4 +38,6 @@ def run_cell(
     )
     table = records_table(problem, alpha, seed, guesses, records, prob.variable_names, info["options_hash"])
     table.insert(1, "sampler", sampler.name)
+    if isinstance(sampler, NearestAlphaSampler):
+        table["reuse_alpha"], table["reuse_pool_size"] = sampler.pool(alpha)
     return table

@@ -3,7 +3,9 @@ acceleration with a bootstrap interval, and hyperplane coverage at equal CPU tim
 and (issue 11) statistics that hold at modest n: :func:`rates` (Wilson intervals, one-sided Fisher exact
 tests vs uniform and vs nearest_alpha, the β sweep), :func:`expected_running_time` (COCO aRT in IPOPT
 iterations and CPU seconds, bootstrap speed-ups), :func:`iteration_capped` (Fig. 22 with a cap fixed before
-the solves) and :func:`anytime_curves`.  All pure functions of the cell tables.
+the solves) and :func:`anytime_curves`; and (issue 21) the aRT per *new η-distinct* high-quality optimum
+(:func:`expected_running_time` with ``target="distinct"``, paper Eq. 12) and how the reuse arms drew from
+their pool (:func:`reuse_pools`).  All pure functions of the cell tables.
 
 Input everywhere: the concatenation of ablation cell tables (columns ``alpha, sampler, converged, m_f,
 tau_s, tau_i, tau_f, cpu_s, wall_s, start``).  "Solve time" is the solve's CPU seconds (one thread per
@@ -89,8 +91,8 @@ def capped_study(
 ) -> tuple[pd.DataFrame, dict]:
     """Fig. 22 and the headline number for ONE α.
 
-    Returns a table per sampler (% converging into the HQ set within the cap, HQ found per CPU-hour) and a
-    dict with the cap and the search acceleration (reference ÷ baseline HQ per CPU-second) with a
+    Returns a table per sampler (% converging into the HQ set within the cap with its 95 % Wilson interval,
+    HQ found per CPU-hour) and a dict with the cap and the search acceleration (reference ÷ baseline HQ per CPU-second) with a
     bootstrap 95% interval (rows resampled within each sampler).
     """
     if df["alpha"].nunique() != 1:
@@ -102,12 +104,17 @@ def capped_study(
     for sampler, idx in df.groupby("sampler").indices.items():
         hq, t = hq_all[idx], t_all[idx]
         capped_t = np.minimum(t, cap) if math.isfinite(cap) else t
+        k = int((hq & (t <= cap)).sum()) if math.isfinite(cap) else 0
+        lo, hi = wilson_interval(k, len(idx)) if math.isfinite(cap) else (math.nan, math.nan)
         rows.append(
             {
                 "sampler": sampler,
                 "n": len(idx),
                 "cap_s": cap,
-                "percent_within_cap": 100 * float((hq & (t <= cap)).mean()) if math.isfinite(cap) else math.nan,
+                "k_within_cap": k,
+                "percent_within_cap": 100 * k / len(idx) if math.isfinite(cap) else math.nan,
+                "ci95_low": lo,
+                "ci95_high": hi,
                 "hq_per_cpu_hour": 3600 * _rate(hq, t, cap) if math.isfinite(cap) else math.nan,
                 "cpu_s_total": float(capped_t[np.isfinite(capped_t)].sum()),
             }
@@ -219,17 +226,51 @@ def solve_costs(df: pd.DataFrame, unit: str) -> np.ndarray:
     return np.where(np.isfinite(c), c, fill)
 
 
+#: What the expected running time counts as found: a high-quality solution, or a *new* η-distinct
+#: high-quality optimum (paper Eq. 12, :func:`amorgs.analysis.diversity.first_come_diverse`).
+ERT_TARGETS = ("high_quality", "distinct")
+
+
 def _ert(cost: np.ndarray, hq: np.ndarray) -> float:
     k = int(hq.sum())
     return float(cost.sum()) / k if k else math.inf
 
 
-def _ratio_boot(cb, hb, ca, ha, n_boot: int, rng: np.random.Generator) -> tuple[float, float]:
-    """Percentile 95 % interval of aRT_b ÷ aRT_a, rows resampled with replacement within each arm."""
+def _new_optima(hq: np.ndarray, features: np.ndarray, eta: float):
+    """``flags(index)``: per start of ``index`` (positions in one arm, 1-D or one resample per row), True
+    where it found a *new* η-distinct high-quality optimum, the starts taken in the order of ``index``
+    (:func:`amorgs.analysis.diversity.first_come_diverse` on the diversity coordinates ``features``)."""
+    from amorgs.analysis.diversity import conflicts, first_come_diverse
+
+    position = np.full(len(hq), -1)
+    position[hq] = np.arange(int(hq.sum()))
+    close = conflicts(features[hq], eta)
+    return lambda index: first_come_diverse(close, position[index])
+
+
+def _found_counter(hq: np.ndarray, features: np.ndarray | None = None, eta: float = math.nan):
+    """``count(index)``: what the starts ``index`` (positions in one arm; 1-D → a number, 2-D → one per row)
+    found — high-quality solutions, or with ``features`` (the diversity coordinates of every start) the new
+    η-distinct high-quality optima (:func:`_new_optima`)."""
+    if features is None:
+        return lambda index: hq[index].sum(-1)
+    flags = _new_optima(hq, features, eta)
+    return lambda index: flags(index).sum(-1)
+
+
+def _art(cost: np.ndarray, count) -> float:
+    """aRT of one arm: its total cost ÷ what its starts, in order, found (``count``: :func:`_found_counter`)."""
+    k = int(count(np.arange(len(cost))))
+    return float(cost.sum()) / k if k else math.inf
+
+
+def _ratio_boot(cb, count_b, ca, count_a, n_boot: int, rng: np.random.Generator) -> tuple[float, float]:
+    """Percentile 95 % interval of aRT_b ÷ aRT_a, rows resampled with replacement within each arm
+    (``count_*``: :func:`_found_counter` of the arm)."""
     ib = rng.integers(0, len(cb), size=(n_boot, len(cb)))
     ia = rng.integers(0, len(ca), size=(n_boot, len(ca)))
-    kb, kc_b = hb[ib].sum(1), cb[ib].sum(1)
-    ka, kc_a = ha[ia].sum(1), ca[ia].sum(1)
+    kb, kc_b = count_b(ib), cb[ib].sum(1)
+    ka, kc_a = count_a(ia), ca[ia].sum(1)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = (kc_b * ka) / (kb * kc_a)  # (C_b / k_b) / (C_a / k_a)
     ratio = np.where((kb == 0) & (ka > 0), np.inf, ratio)
@@ -240,41 +281,86 @@ def _ratio_boot(cb, hb, ca, ha, n_boot: int, rng: np.random.Generator) -> tuple[
     return (float(q[0]), float(q[1]))
 
 
-def _versus(cost_all, hq_all, base, idx, n_boot: int, rng: np.random.Generator) -> tuple[float, float, float]:
+def _versus(cost_all, counters, base, idx, n_boot: int, rng: np.random.Generator) -> tuple[float, float, float]:
     """aRT_base ÷ aRT_arm (> 1: the arm is faster) and its bootstrap 95 % interval; 0 when only the base
-    found anything, ∞ when only the arm did."""
-    ert, ert_b = _ert(cost_all[idx], hq_all[idx]), _ert(cost_all[base], hq_all[base])
+    found anything, ∞ when only the arm did.  ``base``, ``idx``: (name, row positions) of the two arms."""
+    (b_name, b_idx), (a_name, a_idx) = base, idx
+    found_b, found_a = counters[b_name], counters[a_name]
+    ert, ert_b = _art(cost_all[a_idx], found_a), _art(cost_all[b_idx], found_b)
     ratio = ert_b / ert if math.isfinite(ert) else (0.0 if math.isfinite(ert_b) else math.nan)
-    return (ratio, *_ratio_boot(cost_all[base], hq_all[base], cost_all[idx], hq_all[idx], n_boot, rng))
+    return (ratio, *_ratio_boot(cost_all[b_idx], found_b, cost_all[a_idx], found_a, n_boot, rng))
 
 
 def expected_running_time(
     df: pd.DataFrame, beta_kg: float, baseline: str = "uniform", reuse: str = "nearest_alpha",
-    n_boot: int = 2000, seed: int = 0,
+    n_boot: int = 2000, seed: int = 0, target: str = "high_quality", eta: float | None = None,
 ) -> pd.DataFrame:
-    """COCO-style expected running time per (α, sampler, unit): aRT = (all cost spent) ÷ (high-quality
-    solutions found), in IPOPT iterations (primary: deterministic) and CPU seconds; ∞ when none was found.
+    """COCO-style expected running time per (α, sampler, unit): aRT = (all cost spent) ÷ (what was found), in
+    IPOPT iterations (primary: deterministic) and CPU seconds; ∞ when nothing was found.
     ``speedup`` = aRT_baseline ÷ aRT_arm, and ``versus_reuse`` = aRT_reuse ÷ aRT_arm (> 1: the arm beats
     reusing the nearest training α's solutions; < 1: reuse is faster by 1/versus_reuse), each with a seeded
     bootstrap 95 % interval (rows resampled within each arm, 0/0 resamples dropped, ∞ kept; the two
-    comparisons draw from separate streams, so adding one does not move the other)."""
+    comparisons draw from separate streams, so adding one does not move the other).
+
+    ``target`` (:data:`ERT_TARGETS`): ``"high_quality"`` counts high-quality solutions; ``"distinct"`` counts
+    what a designer wants, the *new η-distinct* high-quality optima (paper Eq. 12; η of the ``times``
+    metric of :mod:`amorgs.analysis.diversity`, ``eta`` or its default): each arm's starts in order
+    (model_seed, start), a high-quality solution counts when it is farther than η from every one counted
+    before — a repeat of a solved start, or a solution in a basin already found, costs its iterations and
+    finds nothing new.  A bootstrap resample takes its starts in the order drawn.  That table adds
+    ``k_distinct`` and ``eta``."""
+    from amorgs.analysis.diversity import DiversityParams, diversity_features
+
+    if target not in ERT_TARGETS:
+        raise ValueError(f"unknown aRT target {target!r}; choose one of {ERT_TARGETS}")
+    params = DiversityParams() if eta is None else DiversityParams(eta=float(eta))
     rng = np.random.default_rng(seed)
     rng_reuse = np.random.default_rng([seed, 1])
     rows = []
     for alpha, ga in df.groupby("alpha", sort=True):
-        groups = ga.groupby("sampler").indices
+        if target == "distinct":
+            ga = _order(ga)
+        groups = ga.groupby("sampler", sort=False).indices
         hq_all = high_quality(ga, beta_kg).to_numpy()
+        feats = diversity_features(ga, params) if target == "distinct" else None
+        counters = {s: _found_counter(hq_all[idx], None if feats is None else feats[idx], params.eta)
+                    for s, idx in groups.items()}
         for unit in COST_UNITS:
             cost_all = solve_costs(ga, unit)
             for sampler, idx in sorted(groups.items()):
                 row = {"alpha": alpha, "sampler": sampler, "unit": unit, "n": len(idx),
-                       "k_high_quality": int(hq_all[idx].sum()), "cost_total": float(cost_all[idx].sum()),
-                       "aRT": _ert(cost_all[idx], hq_all[idx])}
+                       "k_high_quality": int(hq_all[idx].sum())}
+                if target == "distinct":
+                    row.update(k_distinct=int(counters[sampler](np.arange(len(idx)))), eta=params.eta)
+                row.update(cost_total=float(cost_all[idx].sum()), aRT=_art(cost_all[idx], counters[sampler]))
                 for column, name, stream in (("speedup", baseline, rng), ("versus_reuse", reuse, rng_reuse)):
                     base = groups.get(name)
-                    values = (math.nan,) * 3 if base is None else _versus(cost_all, hq_all, base, idx, n_boot, stream)
+                    values = ((math.nan,) * 3 if base is None else
+                              _versus(cost_all, counters, (name, base), (sampler, idx), n_boot, stream))
                     row.update(zip((column, f"{column}_ci95_low", f"{column}_ci95_high"), values))
                 rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def reuse_pools(df: pd.DataFrame) -> pd.DataFrame:
+    """How each reuse-arm cell drew its guesses (:class:`~amorgs.models.samplers.NearestAlphaSampler`): per
+    (α, sampler, model seed) with a ``reuse_pool_size`` column, the training α reused (``reuse_alpha``), its
+    pool of high-quality rows (``pool_size``), the cell's starts ``n``, how many of them are pool rows drawn
+    without replacement (min(n, pool)) and how many were drawn with replacement after the pool ran out, and
+    ``draw`` in words — the draw every other table of the report counts.  Empty without reuse cells."""
+    if "reuse_pool_size" not in df.columns or df["reuse_pool_size"].isna().all():
+        return pd.DataFrame()
+    cells = df[df["reuse_pool_size"].notna()]
+    keys = ["alpha", "sampler", *(["model_seed"] if "model_seed" in cells.columns else [])]
+    rows = []
+    for key, g in cells.groupby(keys, sort=True):
+        pool, n = int(g["reuse_pool_size"].iloc[0]), len(g)
+        fresh = min(n, pool)
+        draw = ("without replacement" if n <= pool else
+                f"without replacement for the first {pool} starts (the whole pool), then with replacement")
+        rows.append({**dict(zip(keys, key)), "reuse_alpha": float(g["reuse_alpha"].iloc[0]), "pool_size": pool,
+                     "n": n, "starts_without_replacement": fresh, "starts_with_replacement": n - fresh,
+                     "draw": draw})
     return pd.DataFrame(rows)
 
 
@@ -385,8 +471,18 @@ def _alphas_to_repay(upfront_cpu_s: float, solutions: int, saving_per_solution: 
     return upfront_cpu_s / (solutions * saving_per_solution)
 
 
+def ratio_of_rates_interval(k1: int, n1: int, k2: int, n2: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Katz log interval of the ratio of two proportions (k1/n1) ÷ (k2/n2); NaN when either k is 0."""
+    if min(k1, k2) == 0 or min(n1, n2) == 0:
+        return (math.nan, math.nan)
+    ratio = (k1 / n1) / (k2 / n2)
+    half = z * math.sqrt(1 / k1 - 1 / n1 + 1 / k2 - 1 / n2)
+    return (ratio * math.exp(-half), ratio * math.exp(half))
+
+
 def iteration_capped(
-    df: pd.DataFrame, beta_kg: float, caps, max_iter: int | None = None, baseline: str = "uniform"
+    df: pd.DataFrame, beta_kg: float, caps, max_iter: int | None = None, baseline: str = "uniform",
+    n_boot: int = 2000, seed: int = 0,
 ) -> pd.DataFrame:
     """The paper's Fig. 22 measure with an iteration cap fixed *before* the scored solves (config
     ``ablation.iteration_caps``), enforced as a real cap: a start succeeds under cap c iff it reached the
@@ -398,11 +494,14 @@ def iteration_capped(
     ``max_iter`` are rejected.
 
     Per (α, cap, sampler): % within cap (Wilson 95 %), high-quality per 1000 iterations (throughput), and the
-    ratios to ``baseline``: ``percent_ratio`` (the paper's ratio of percentages) and ``throughput_ratio``.
+    ratios to ``baseline``: ``percent_ratio`` (the paper's ratio of percentages, Katz 95 % interval
+    :func:`ratio_of_rates_interval`) and ``throughput_ratio`` (a seeded bootstrap 95 % interval, starts
+    resampled within each arm as for :func:`expected_running_time`).
     """
     caps = sorted(int(c) for c in caps)
     if max_iter is not None and caps and caps[-1] > max_iter:
         raise ValueError(f"iteration cap {caps[-1]} exceeds the solver's max_iter = {max_iter}: not a real cap")
+    rng = np.random.default_rng([seed, 3])
     rows = []
     for alpha, ga in df.groupby("alpha", sort=True):
         it_all = solve_costs(ga, "iterations")
@@ -410,9 +509,9 @@ def iteration_capped(
         groups = ga.groupby("sampler").indices
         for cap in caps:
             per = {}
+            ok_all, spent_all = hq_all & (it_all <= cap), np.minimum(it_all, cap)
             for sampler, idx in groups.items():
-                ok = hq_all[idx] & (it_all[idx] <= cap)
-                spent = np.minimum(it_all[idx], cap).sum()
+                ok, spent = ok_all[idx], spent_all[idx].sum()
                 lo, hi = wilson_interval(int(ok.sum()), len(idx))
                 per[sampler] = {"alpha": alpha, "cap_iterations": cap, "sampler": sampler, "n": len(idx),
                                 "k_within_cap": int(ok.sum()), "percent_within_cap": 100 * ok.mean(),
@@ -423,9 +522,15 @@ def iteration_capped(
                 if b is not None:
                     row["percent_ratio"] = (row["percent_within_cap"] / b["percent_within_cap"]
                                             if b["percent_within_cap"] > 0 else math.inf if row["percent_within_cap"] > 0 else math.nan)
+                    row["percent_ratio_ci95_low"], row["percent_ratio_ci95_high"] = ratio_of_rates_interval(
+                        row["k_within_cap"], row["n"], b["k_within_cap"], b["n"])
                     bt = b["hq_per_1000_iterations"]
                     row["throughput_ratio"] = (row["hq_per_1000_iterations"] / bt
                                                if bt > 0 else math.inf if row["hq_per_1000_iterations"] > 0 else math.nan)
+                    b_idx, a_idx = groups[baseline], groups[sampler]
+                    row["throughput_ratio_ci95_low"], row["throughput_ratio_ci95_high"] = _ratio_boot(
+                        spent_all[b_idx], _found_counter(ok_all[b_idx]), spent_all[a_idx],
+                        _found_counter(ok_all[a_idx]), n_boot, rng)
                     row["p_gt_baseline"] = (fisher_greater(row["k_within_cap"], row["n"], b["k_within_cap"], b["n"])
                                             if sampler != baseline else math.nan)
                 rows.append(row)
@@ -434,10 +539,11 @@ def iteration_capped(
 
 def anytime_curves(df: pd.DataFrame, beta_kg: float, eta: float | None = None) -> pd.DataFrame:
     """Per (α, sampler), the starts in order (model_seed, start) with cumulative CPU seconds and iterations,
-    the best m_f among the high-quality solutions found so far, and the number of *distinct optima* so far:
-    high-quality solutions farther than η (paper Eq. 12, the ``times`` surrogate metric of
+    the best m_f among the high-quality solutions found so far, and the number of *new η-distinct optima* so
+    far: high-quality solutions farther than η (paper Eq. 12, the ``times`` surrogate metric of
     :mod:`amorgs.analysis.diversity`) from every earlier counted one — an η-diverse set by construction,
-    grown in discovery order so the count never decreases."""
+    grown in discovery order so the count never decreases (:func:`amorgs.analysis.diversity.first_come_diverse`,
+    the count :func:`expected_running_time` divides by with ``target="distinct"``)."""
     from amorgs.analysis.diversity import DiversityParams, diversity_features
 
     params = DiversityParams() if eta is None else DiversityParams(eta=float(eta))
@@ -445,22 +551,55 @@ def anytime_curves(df: pd.DataFrame, beta_kg: float, eta: float | None = None) -
     for (alpha, sampler), g in df.groupby(["alpha", "sampler"], sort=True):
         g = _order(g).reset_index(drop=True)
         hq = high_quality(g, beta_kg).to_numpy()
-        feats = diversity_features(g, params)
-        kept: list[np.ndarray] = []
-        best, count = -math.inf, 0
-        best_col, count_col = [], []
-        for i in range(len(g)):
-            if hq[i]:
-                best = max(best, float(g["m_f"].iloc[i]))
-                if all(np.linalg.norm(feats[i] - f) > params.eta for f in kept):
-                    kept.append(feats[i])
-                    count += 1
-            best_col.append(best if math.isfinite(best) else math.nan)
-            count_col.append(count)
+        new = _new_optima(hq, diversity_features(g, params), params.eta)(np.arange(len(g)))
+        best = g["m_f"].where(hq).cummax().ffill()  # NaN until the first high-quality solution
         frames.append(pd.DataFrame({
             "alpha": alpha, "sampler": sampler, "solve": np.arange(1, len(g) + 1),
             "cpu_s_cumulative": np.cumsum(solve_costs(g, "cpu_s")),
             "iterations_cumulative": np.cumsum(solve_costs(g, "iterations")),
-            "best_m_f": best_col, "distinct_optima": count_col,
+            "best_m_f": best.to_numpy(dtype=float), "distinct_optima": np.cumsum(new),
         }))
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+#: The anytime measures with bootstrap bands: best high-quality m_f (kg) and new η-distinct optima found.
+ANYTIME_MEASURES = ("best_m_f", "distinct_optima")
+
+
+def anytime_bands(
+    df: pd.DataFrame, beta_kg: float, eta: float | None = None, n_boot: int = 2000, seed: int = 0,
+    points: int = 60,
+) -> pd.DataFrame:
+    """Bootstrap 95 % bands of the anytime curves (:func:`anytime_curves`): per (α, sampler, cost unit,
+    measure), ``points`` budgets evenly spaced from 0 to the arm's total cost (``budget``, in the unit:
+    IPOPT iterations or CPU s) and, at each, the 2.5 / 50 / 97.5 % quantiles (``low``, ``median``, ``high``)
+    over ``n_boot`` resamples of the arm's starts (with replacement, taken in the order drawn; seeded) of
+    what was found within that budget: the best high-quality m_f (kg; NaN while none is found — such
+    resamples count below every m_f) and the number of new η-distinct high-quality optima.  A resample
+    whose starts cost less than the budget holds its final value."""
+    from amorgs.analysis.diversity import DiversityParams, diversity_features
+
+    params = DiversityParams() if eta is None else DiversityParams(eta=float(eta))
+    rng = np.random.default_rng([seed, 2])
+    rows = []
+    for (alpha, sampler), g in df.groupby(["alpha", "sampler"], sort=True):
+        g = _order(g).reset_index(drop=True)
+        hq = high_quality(g, beta_kg).to_numpy()
+        index = rng.integers(0, len(g), size=(n_boot, len(g)))
+        mass = np.where(hq, g["m_f"].to_numpy(dtype=float), -np.inf)[index]
+        values = {"best_m_f": np.maximum.accumulate(mass, axis=1),
+                  "distinct_optima": np.cumsum(_new_optima(hq, diversity_features(g, params), params.eta)(index),
+                                               axis=1).astype(float)}
+        for unit in COST_UNITS:
+            cost = solve_costs(g, unit)
+            spent = np.cumsum(cost[index], axis=1)
+            budget = np.linspace(0.0, float(cost.sum()), points)
+            done = np.stack([np.searchsorted(row, budget, side="right") for row in spent]) - 1  # last start done
+            for measure, v in values.items():
+                at = np.where(done >= 0, np.take_along_axis(v, np.maximum(done, 0), axis=1),
+                              -np.inf if measure == "best_m_f" else 0.0)
+                q = np.quantile(at, [0.025, 0.5, 0.975], axis=0, method="inverted_cdf")
+                q = np.where(np.isfinite(q), q, np.nan)
+                rows.append(pd.DataFrame({"alpha": alpha, "sampler": sampler, "unit": unit, "measure": measure,
+                                          "budget": budget, "low": q[0], "median": q[1], "high": q[2]}))
+    return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()

@@ -18,8 +18,9 @@ class AblationSummary:
 
     metrics: flat ``{key: float}`` (keys from :func:`amorgs.alphas.metric_key`; NaN left out, ∞ kept, e.g. an
         acceleration over a baseline that found nothing).
-    tables: ``table6``, ``capped``, ``coverage``, ``rates``, ``beta_sweep``, ``ert``, ``iteration_capped``,
-        ``anytime`` (column ``alpha`` holds :func:`amorgs.alphas.alpha_value`, e.g. 0.15).
+    tables: ``table6``, ``capped``, ``coverage``, ``rates``, ``beta_sweep``, ``ert``, ``ert_distinct``,
+        ``reuse_pool``, ``iteration_capped``, ``anytime``, ``anytime_bands``, ``break_even``, ``learning_curve``,
+        ``seeds`` (column ``alpha`` holds :func:`amorgs.alphas.alpha_value`, e.g. 0.15).
     solves: the cells (one row per start) with a boolean ``high_quality`` column (converged and m_f ≥ β).
     ground_truth: the rows of the high-quality solution set at the test α (the α of the cells).
     beta_kg: the quality threshold β (kg).

@@ -5,7 +5,9 @@ That is a maximum independent set of the *conflict graph* (an edge wherever d̂ 
 solve it with the classic minimum-degree greedy: repeatedly keep the remaining solution with the fewest
 remaining conflicts (ties: higher m_f, then lower row index), drop it and its neighbours.  The result is
 η-diverse and *maximal* — no left-out solution can be added — and on sparse conflict graphs it is usually
-close to the maximum.  η⁻ (Eq. 13) is the smallest nearest-neighbour distance in the set; η must exceed it
+close to the maximum.  A search that finds solutions one after another holds a different η-diverse set:
+:func:`first_come_diverse` keeps each solution farther than η from every one kept before it (the *new*
+η-distinct optima), so the set only grows as solutions arrive; it is maximal too, but may be smaller.  η⁻ (Eq. 13) is the smallest nearest-neighbour distance in the set; η must exceed it
 for Eq. 12 to remove anything.
 
 Surrogate metric (the paper suggests a Euclidean one on the decision space), chosen by ``features``:
@@ -86,6 +88,37 @@ def greedy_diverse_subset(features: np.ndarray, eta: float, quality: np.ndarray 
         for u in removed:
             degree[neighbours[u]] -= 1
     return np.sort(np.array(chosen, dtype=int))
+
+
+def conflicts(features: np.ndarray, eta: float) -> np.ndarray:
+    """The conflict graph of Eq. 12 as a dense boolean matrix (n, n): True where d̂ ≤ η (the diagonal too)."""
+    features = np.asarray(features, float)
+    return np.linalg.norm(features[:, None, :] - features[None, :, :], axis=-1) <= eta
+
+
+def first_come_diverse(close: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Which solutions are *new* η-distinct optima when they arrive in ``order``.
+
+    ``close``: :func:`conflicts` of the solutions (k, k); ``order``: row positions into it, 1-D (one sequence)
+    or 2-D (one sequence per row, e.g. bootstrap resamples); a position may repeat (a repeat is never new) and
+    a negative one stands for a start without a solution (never new).  Returns a boolean array shaped like
+    ``order``: True where the solution is farther than η from every solution kept before it in its sequence.
+    The kept solutions of a sequence are an η-diverse set (Eq. 12's constraint), maximal among its solutions.
+    """
+    close = np.asarray(close, bool)
+    order = np.asarray(order, dtype=np.int64)
+    seqs = np.atleast_2d(order)
+    new = np.zeros(seqs.shape, dtype=bool)
+    if not close.shape[0]:
+        return new.reshape(order.shape)
+    blocked = np.zeros((seqs.shape[0], close.shape[0]), dtype=bool)
+    rows = np.arange(seqs.shape[0])
+    for t in range(seqs.shape[1]):
+        i = seqs[:, t]
+        fresh = (i >= 0) & ~blocked[rows, np.maximum(i, 0)]
+        new[:, t] = fresh
+        blocked[fresh] |= close[i[fresh]]
+    return new.reshape(order.shape)
 
 
 def is_eta_diverse(features: np.ndarray, indices: np.ndarray, eta: float) -> bool:

@@ -16,7 +16,7 @@ from scipy.stats import gaussian_kde
 
 from amorgs.ablation.arms import SAMPLER_LABELS, SAMPLER_NAMES
 from amorgs.ablation.summary import AblationSummary
-from amorgs.alphas import distinct_alphas, rows_at
+from amorgs.alphas import distinct_alphas, rows_at, rows_at_any
 
 
 def _samplers(df: pd.DataFrame) -> list[str]:
@@ -49,12 +49,14 @@ def fig21_solve_time_histograms(solves: pd.DataFrame, beta_kg: float) -> Figure:
             ax.set_title(f"{SAMPLER_LABELS.get(sampler, sampler)}\nα = {alpha:g}, n_HQ = {t.size}/{len(g)}",
                          fontsize=8)
             ax.set_xlabel("solve time (CPU s)")
-    fig.suptitle(f"Fig. 21 — solve time of starts converging into A(α, β = {beta_kg:g} kg)")
+            ax.set_ylabel("probability density (1/CPU s)", fontsize=8)
+    fig.suptitle(f"Fig. 21 — solve time of starts converging into A(α, β = {beta_kg:g} kg): histogram and KDE")
     return fig
 
 
 def fig22_capped_convergence(capped: pd.DataFrame) -> Figure:
-    """% of starts converging into the high-quality set within the per-solve cap, per sampler and α.
+    """High-quality rate within the per-solve cap: % of starts converging into A(α, β) (verified and m_f ≥ β)
+    within the cap, with its 95 % Wilson interval, per sampler and α.
 
     ``capped``: the capped study (:func:`amorgs.ablation.statistics.capped_study`) of every α, column ``alpha``."""
     alphas = distinct_alphas(capped["alpha"]) if len(capped) else []
@@ -66,24 +68,37 @@ def fig22_capped_convergence(capped: pd.DataFrame) -> Figure:
         table = rows_at(capped, alpha)
         order = _samplers(table)
         t = table.set_index("sampler").loc[order]
-        ax.bar(range(len(t)), t["percent_within_cap"], color=[f"C{i}" for i in range(len(t))])
+        y = t["percent_within_cap"].to_numpy(dtype=float)
+        ax.bar(range(len(t)), y, color=[f"C{i}" for i in range(len(t))], alpha=0.8)
+        ax.errorbar(range(len(t)), y, yerr=[y - t["ci95_low"].to_numpy(float), t["ci95_high"].to_numpy(float) - y],
+                    fmt="none", ecolor="k", capsize=3, lw=1)
         ax.set_xticks(range(len(t)), [SAMPLER_LABELS.get(s, s) for s in t.index], rotation=30, ha="right", fontsize=8)
-        ax.set_ylabel("% converged within cap")
+        ax.set_ylabel("high-quality rate within cap (%)\n(converged and m_f ≥ β; Wilson 95 %)", fontsize=8)
+        ax.set_ylim(0, 100)
         ax.set_title(f"α = {alpha:g}, cap = {t['cap_s'].iloc[0]:.1f} CPU s, n = {int(t['n'].iloc[0])}")
-    fig.suptitle("Fig. 22 — convergence under a per-solve time cap (AmorGS median solve time)")
+    fig.suptitle("Fig. 22 — high-quality rate under a per-solve time cap (AmorGS median solve time)")
     return fig
 
 
 def fig23_amorgs_diversity(solves: pd.DataFrame, ground_truth: pd.DataFrame, beta_kg: float,
                            sampler: str = "amorgs") -> Figure:
     """Per test α: the sampler's guesses, their high-quality solutions, and the ground-truth HQ set,
-    in (τ_s, TOF) coordinates (TU) coloured by m_f (kg).
+    in (τ_s, TOF) coordinates (TU) coloured by m_f (kg) on ONE colour range shared by every panel: that of
+    the high-quality solutions and the ground truth (guesses outside it saturate, the colour bar says so).
 
     ``solves``: cell rows with ``guess_*`` and solution columns and the boolean ``high_quality``;
     ``ground_truth``: the high-quality solution set (rows at other α are ignored); ``beta_kg`` labels panels."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
     alphas = distinct_alphas(solves["alpha"])
-    fig = Figure(figsize=(13, 3.6 * len(alphas)), layout="tight")
+    fig = Figure(figsize=(13, 3.6 * len(alphas)), layout="constrained")
     axes = fig.subplots(len(alphas), 3, squeeze=False, sharey="row")
+    mine = solves[(solves["sampler"] == sampler) & solves["high_quality"].astype(bool)]["m_f"]
+    truth = rows_at_any(ground_truth, alphas)["m_f"] if alphas else pd.Series(dtype=float)
+    masses = pd.concat([mine, truth]).to_numpy(dtype=float)
+    masses = masses[np.isfinite(masses)]
+    norm = Normalize(*(masses.min(), masses.max()) if masses.size else (beta_kg, beta_kg + 1.0))
     for i, alpha in enumerate(alphas):
         this_alpha = rows_at(solves, alpha)
         g = this_alpha[this_alpha["sampler"] == sampler]
@@ -97,13 +112,14 @@ def fig23_amorgs_diversity(solves: pd.DataFrame, ground_truth: pd.DataFrame, bet
         ]
         for ax, (title, x, y, c) in zip(axes[i], panels):
             if len(x):
-                sc = ax.scatter(x, y, c=c, s=8, cmap="viridis")
-                fig.colorbar(sc, ax=ax, label="m_f (kg)")
+                ax.scatter(x, y, c=c, s=8, cmap="viridis", norm=norm)
             else:
                 ax.text(0.5, 0.5, "none", ha="center", va="center", transform=ax.transAxes)
             ax.set_title(f"α = {alpha:g}: {title} (n = {len(x)})", fontsize=9)
             ax.set_xlabel("τ_s (TU)")
         axes[i, 0].set_ylabel("TOF (TU)")
+    fig.colorbar(ScalarMappable(norm=norm, cmap="viridis"), ax=axes.ravel().tolist(), extend="both",
+                 label="m_f (kg), one range for every panel")
     fig.suptitle(f"Fig. 23 — {SAMPLER_LABELS.get(sampler, sampler)} samples, their solutions and the ground truth")
     return fig
 
@@ -168,8 +184,9 @@ def ablation_speedups(ert: pd.DataFrame) -> Figure:
 
 
 def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
-    """Fig. 22 done with a fixed iteration cap: per α (columns), the paper's ratio of percentages (top) and
-    the throughput ratio (bottom), arm ÷ uniform, as a function of the cap."""
+    """Fig. 22 done with a fixed iteration cap: per α (columns), as a function of the cap, the high-quality
+    rate within the cap (Wilson 95 %, top), the paper's ratio of percentages (Katz 95 %, middle) and the
+    throughput ratio (bootstrap 95 %, bottom), arm ÷ uniform; intervals as bands."""
     if capped.empty:
         fig = Figure(figsize=(5, 3))
         ax = fig.subplots()
@@ -177,51 +194,72 @@ def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
         ax.set_axis_off()
         return fig
     alphas = distinct_alphas(capped["alpha"])
-    fig = Figure(figsize=(5 * len(alphas), 7), layout="tight")
-    axes = fig.subplots(2, len(alphas), squeeze=False, sharex=True)
+    fig = Figure(figsize=(5 * len(alphas), 10), layout="tight")
+    axes = fig.subplots(3, len(alphas), squeeze=False, sharex=True)
+    panels = (("percent_within_cap", "ci95_low", "ci95_high", "high-quality rate within cap (%)\n(Wilson 95 %)"),
+              ("percent_ratio", "percent_ratio_ci95_low", "percent_ratio_ci95_high",
+               "% within cap ÷ uniform's\n(Katz 95 %)"),
+              ("throughput_ratio", "throughput_ratio_ci95_low", "throughput_ratio_ci95_high",
+               "HQ per iteration ÷ uniform's\n(bootstrap 95 %)"))
     for j, alpha in enumerate(alphas):
         t = rows_at(capped, alpha)
         for s in _samplers(t):
             g = t[t["sampler"] == s].sort_values("cap_iterations")
-            for i, col in enumerate(("percent_ratio", "throughput_ratio")):
-                y = g[col].replace(np.inf, np.nan) if col in g else pd.Series(np.nan, index=g.index)
-                axes[i, j].plot(g["cap_iterations"], y, "o-", color=_colour(s), label=_label(s), ms=3)
+            for ax, (col, lo, hi, _) in zip(axes[:, j], panels):
+                y, low, high = (g[c].replace(np.inf, np.nan) if c in g else pd.Series(np.nan, index=g.index)
+                                for c in (col, lo, hi))
+                ax.plot(g["cap_iterations"], y, "o-", color=_colour(s), label=_label(s), ms=3)
+                ax.fill_between(g["cap_iterations"], low, high, color=_colour(s), alpha=0.15, lw=0)
         axes[0, j].set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
-        axes[0, j].set_ylabel("% within cap ÷ uniform's")
-        axes[1, j].set_ylabel("HQ per iteration ÷ uniform's")
-        axes[1, j].set_xlabel("iteration cap (fixed before the solves)")
+        for ax, (*_, label) in zip(axes[:, j], panels):
+            ax.set_ylabel(label, fontsize=8)
+        axes[-1, j].set_xlabel("iteration cap (fixed before the solves)")
         caps = t["cap_iterations"].to_numpy(dtype=float)
-        for ax in axes[:, j]:
-            ax.axhline(1.0, color="grey", ls="--", lw=0.8)
+        for i, ax in enumerate(axes[:, j]):
+            if i:
+                ax.axhline(1.0, color="grey", ls="--", lw=0.8)
             ax.set_xscale("log")
             # explicit limits: with every ratio undefined (no high-quality start) no point is drawn
             ax.set_xlim(caps.min() / 1.3, caps.max() * 1.3)
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle("Fig. 22 (iteration cap) — ratio of percentages and throughput ratio vs the cap (∞ not drawn)")
+    fig.suptitle("Fig. 22 (iteration cap) — high-quality rate, ratio of percentages and throughput ratio vs the "
+                 "cap (∞ not drawn)")
     return fig
 
 
-def ablation_anytime(curves: pd.DataFrame) -> Figure:
-    """Anytime curves per α (rows): best m_f vs cumulative CPU s and vs cumulative iterations, and the
-    number of η-distinct high-quality optima vs cumulative CPU s."""
+#: Panels of the anytime figure: (measure, cost unit, y label).
+ANYTIME_PANELS = (("best_m_f", "iterations", "best high-quality m_f (kg)"),
+                  ("best_m_f", "cpu_s", "best high-quality m_f (kg)"),
+                  ("distinct_optima", "iterations", "new η-distinct HQ optima (Eq. 12)"),
+                  ("distinct_optima", "cpu_s", "new η-distinct HQ optima (Eq. 12)"))
+_ANYTIME_X = {"iterations": ("iterations_cumulative", "cumulative IPOPT iterations"),
+              "cpu_s": ("cpu_s_cumulative", "cumulative CPU s")}
+
+
+def ablation_anytime(curves: pd.DataFrame, bands: pd.DataFrame) -> Figure:
+    """Anytime curves per α (rows): best high-quality m_f and the number of new η-distinct optima, each vs
+    cumulative IPOPT iterations and CPU s (columns); the arm's starts in order (steps) with the bootstrap
+    95 % band of :func:`amorgs.ablation.statistics.anytime_bands` (shaded)."""
     alphas = distinct_alphas(curves["alpha"])
-    fig = Figure(figsize=(15, 3.8 * len(alphas)), layout="tight")
-    axes = fig.subplots(len(alphas), 3, squeeze=False)
+    fig = Figure(figsize=(19, 3.8 * len(alphas)), layout="tight")
+    axes = fig.subplots(len(alphas), len(ANYTIME_PANELS), squeeze=False)
     for i, alpha in enumerate(alphas):
-        t = rows_at(curves, alpha)
+        t, b = rows_at(curves, alpha), rows_at(bands, alpha) if len(bands) else bands
         for s in _samplers(t):
             g = t[t["sampler"] == s]
-            kw = {"color": _colour(s), "label": _label(s), "where": "post"}
-            axes[i, 0].step(g["cpu_s_cumulative"], g["best_m_f"], **kw)
-            axes[i, 1].step(g["iterations_cumulative"], g["best_m_f"], **kw)
-            axes[i, 2].step(g["cpu_s_cumulative"], g["distinct_optima"], **kw)
-        for ax, xl, yl in zip(axes[i], ("cumulative CPU s", "cumulative IPOPT iterations", "cumulative CPU s"),
-                              ("best high-quality m_f (kg)", "best high-quality m_f (kg)", "η-distinct optima")):
-            ax.set_xlabel(xl)
-            ax.set_ylabel(yl)
+            for ax, (measure, unit, _) in zip(axes[i], ANYTIME_PANELS):
+                x = _ANYTIME_X[unit][0]
+                ax.step(g[x], g[measure], color=_colour(s), label=_label(s), where="post")
+                if len(b):
+                    band = b[(b["sampler"] == s) & (b["unit"] == unit) & (b["measure"] == measure)]
+                    ax.fill_between(band["budget"], band["low"], band["high"], color=_colour(s), alpha=0.15,
+                                    lw=0, step="post")
+        for ax, (_, unit, ylabel) in zip(axes[i], ANYTIME_PANELS):
+            ax.set_xlabel(_ANYTIME_X[unit][1])
+            ax.set_ylabel(ylabel)
             ax.set_title(f"α = {alpha:g}", fontsize=9)
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle("Anytime performance of each arm (starts in order)")
+    fig.suptitle("Anytime performance of each arm (starts in order; shaded: bootstrap 95 % band)")
     return fig
 
 
@@ -256,5 +294,5 @@ def ablation_figures(summary: AblationSummary) -> dict[str, Figure]:
         "fig22_iteration_capped": fig22_iteration_capped(tables["iteration_capped"]),
         "ablation_speedups": ablation_speedups(tables["ert"]),
         "ablation_beta_sweep": ablation_beta_sweep(tables["beta_sweep"]),
-        "ablation_anytime": ablation_anytime(tables["anytime"]),
+        "ablation_anytime": ablation_anytime(tables["anytime"], tables["anytime_bands"]),
     }

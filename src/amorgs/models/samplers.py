@@ -15,7 +15,8 @@ The five samplers of the ablation (paper Sec. V.B.7), for the LT-CR3BP (N = 20, 
 
 and three non-neural (or half-neural) baselines that reuse known solutions (issue 11)::
 
-    nearest_alpha            HQ solutions of the nearest training α, drawn with replacement, unchanged
+    nearest_alpha            HQ solutions of the nearest training α, unchanged: drawn without replacement
+                             until that α's pool is exhausted, then with replacement
     nearest_alpha_perturbed  the same + N(0, σ²) noise in the box-normalised space, then make_valid
     gmm_lstm                 τ, m_f ~ per-training-α Gaussian mixture, blended between the bracketing α;
                              controls = LSTM(τ, m_f, α)
@@ -192,8 +193,11 @@ def nearest_training_alpha(by_alpha: dict[float, np.ndarray], alpha: float) -> f
 
 
 class NearestAlphaSampler:
-    """Reuse, unchanged, the high-quality solutions of the nearest *training* α: ``n`` rows drawn uniformly
-    with replacement (one ``rng.integers`` call) from that α's rows.  No learning at all."""
+    """Reuse, unchanged, the high-quality solutions of the nearest *training* α (its *pool*, :meth:`pool`).
+    No learning at all.  ``n`` rows are drawn *without* replacement while the pool lasts — start i < pool size
+    is a pool row not drawn before (one ``rng.permutation`` of the pool) — and the starts beyond the pool
+    uniformly *with* replacement (one ``rng.integers`` call): every start up to the pool size solves a new
+    guess, and the later ones repeat a start already solved."""
 
     name = "nearest_alpha"
 
@@ -201,10 +205,16 @@ class NearestAlphaSampler:
         self.problem = problem
         self.by_alpha = _training_rows(high_quality, train_alphas, problem.variable_names)
 
+    def pool(self, alpha: float) -> tuple[float, int]:
+        """(the training α whose high-quality rows are reused at ``alpha``, the number of those rows)."""
+        source = nearest_training_alpha(self.by_alpha, check_alpha(alpha, self.problem.alpha_range, self.problem.name))
+        return source, len(self.by_alpha[source])
+
     def _draw(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
-        alpha = check_alpha(alpha, self.problem.alpha_range, self.problem.name)
-        rows = self.by_alpha[nearest_training_alpha(self.by_alpha, alpha)]
-        return rows[rng.integers(0, len(rows), size=n)]
+        rows = self.by_alpha[self.pool(alpha)[0]]
+        fresh = rng.permutation(len(rows))[:n]
+        again = rng.integers(0, len(rows), size=n - len(fresh))
+        return rows[np.concatenate([fresh, again])]
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         return make_valid(self._draw(alpha, n, rng), self.problem)

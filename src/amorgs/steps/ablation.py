@@ -1,8 +1,8 @@
 """The warm-start ablation (paper Sec. V.B.7–8, issue 11): per (test α, sampler) one job solving guesses from
 that sampler with the CR3BP solver options — once with the models of ``cr3bp_models.seed``, and once more per
 ``cr3bp_models.extra_seeds`` (replicates: their own models, their own cell seed); then the report: Table 6,
-the capped studies, coverage, rates + Fisher tests, the β sweep, expected running time, anytime curves and
-Figs. 21–23."""
+the capped studies, coverage, rates + Fisher tests, the β sweep, expected running time (per high-quality
+solution and per new η-distinct optimum), the reuse pools, anytime curves with bands and Figs. 21–23."""
 
 from __future__ import annotations
 
@@ -121,7 +121,8 @@ def cell_models(sampler: str, model_template: str, wildcards: Wildcards) -> list
 class ReportSettings(Section):
     """β (kg) of a high-quality solution, the β sweep (kg), the Fig. 22 iteration caps fixed before the
     solves (≤ ``max_iter``), ``n_boot`` bootstrap resamples drawn with ``seed``, the high-quality solutions
-    wanted per new α of the break-even table, and the training α (whose solves are the arms' data)."""
+    wanted per new α of the break-even table, the training α (whose solves are the arms' data) and η of the
+    η-distinct optima (Eq. 12, dimensionless: the structure analysis's ``params.diversity.eta``)."""
 
     beta_kg: float
     beta_sweep_kg: tuple[float, ...]
@@ -131,6 +132,7 @@ class ReportSettings(Section):
     seed: int
     break_even_solutions: tuple[int, ...]
     train_alphas: tuple[float, ...]
+    eta: float
 
 
 def _report_settings(cfg: Config, w: Wildcards) -> ReportSettings:
@@ -138,7 +140,8 @@ def _report_settings(cfg: Config, w: Wildcards) -> ReportSettings:
     return ReportSettings(beta_kg=cfg.problems.cr3bp.filter.min_final_mass_kg, beta_sweep_kg=a.beta_sweep_kg,
                           iteration_caps=a.iteration_caps, max_iter=cfg.problems.cr3bp.solver.max_iter,
                           n_boot=a.n_boot, seed=a.seed, break_even_solutions=a.break_even_solutions,
-                          train_alphas=cfg.problems.cr3bp.alphas.train_values())
+                          train_alphas=cfg.problems.cr3bp.alphas.train_values(),
+                          eta=cfg.cr3bp_analysis.params.diversity.eta)
 
 
 def upfront_cpu(alpha_tables: list[str], train_alphas, training_reports: list[str]) -> dict[str, float]:
@@ -175,7 +178,8 @@ def run_report(job: Job, run) -> None:
     run.log_metrics({f"upfront_cpu_h/{arm}": v / 3600 for arm, v in upfront.items()})
     report = summarize(pd.concat([pd.read_parquet(p) for p in cells], ignore_index=True), truth, s.beta_kg,
                        n_boot=s.n_boot, seed=s.seed, beta_sweep=s.beta_sweep_kg, iteration_caps=s.iteration_caps,
-                       max_iter=s.max_iter, upfront_cpu_s=upfront, break_even_solutions=s.break_even_solutions)
+                       max_iter=s.max_iter, upfront_cpu_s=upfront, break_even_solutions=s.break_even_solutions,
+                       eta=s.eta)
     tables = report.tables
     by_name = {os.path.basename(p): p for p in job.output["tables"]}
     with atomic_path(by_name["table6.md"]) as tmp:
