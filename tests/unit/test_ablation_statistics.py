@@ -286,3 +286,126 @@ def test_break_even_is_upfront_over_the_saving_per_alpha():
     assert t.loc[("amorgs", 10), "break_even_new_alphas"] == math.inf  # it found nothing: it never repays
     assert "uniform" not in t.index.get_level_values(0)
     assert t.loc[("nearest_alpha", 10), "upfront_cpu_h"] == pytest.approx(58.0 / 3600)
+
+
+# ----------------------------------------------------------------- issue 21: what a designer wants
+
+
+def test_first_come_diverse_keeps_new_optima_in_order():
+    from amorgs.analysis.diversity import conflicts, first_come_diverse, is_eta_diverse
+
+    # four solutions on a line: 0 and 1 are 0.01 apart (one optimum at η = 0.02), 2 and 3 far from both
+    feats = np.array([[0.0], [0.01], [0.5], [1.0]])
+    close = conflicts(feats, 0.02)
+    assert first_come_diverse(close, np.array([0, 1, 2, 3])).tolist() == [True, False, True, True]
+    assert first_come_diverse(close, np.array([1, 0, 0, -1, 3])).tolist() == [True, False, False, False, True]
+    # resamples, one per row: a repeat is never new, a start without a solution (-1) neither
+    both = first_come_diverse(close, np.array([[2, 2, 1], [3, -1, 0]]))
+    assert both.tolist() == [[True, False, True], [True, False, True]]
+    kept = np.flatnonzero(first_come_diverse(close, np.arange(4)))
+    assert is_eta_diverse(feats, kept, 0.02)
+
+
+def test_expected_running_time_per_distinct_optimum():
+    from amorgs.ablation.statistics import expected_running_time
+
+    # reuse: 4 HQ of 4 starts, but starts 1 and 3 land where 0 did (a repeated pool row): 2 distinct optima;
+    # amorgs: 2 HQ of 4, both distinct; uniform: 1 HQ
+    df = pd.concat([
+        arm("nearest_alpha", [10, 10, 10, 10], [1, 1, 1, 1], tau_s=[18.0, 18.0, 26.0, 18.0]),
+        arm("amorgs", [20, 20, 20, 20], [1, 0, 1, 0], tau_s=[18.0, 30.0, 26.0, 22.0]),
+        arm("uniform", [50, 50, 50, 50], [0, 0, 1, 0]),
+    ], ignore_index=True)
+    ert = expected_running_time(df, 415.0, n_boot=400, seed=3, target="distinct", eta=0.02)
+    it = ert[ert["unit"] == "iterations"].set_index("sampler")
+    assert it.loc["nearest_alpha", "k_high_quality"] == 4 and it.loc["nearest_alpha", "k_distinct"] == 2
+    assert it.loc["nearest_alpha", "aRT"] == pytest.approx(40 / 2)
+    assert it.loc["amorgs", "aRT"] == pytest.approx(80 / 2)
+    assert it.loc["amorgs", "versus_reuse"] == pytest.approx(20 / 40)
+    assert it.loc["amorgs", "speedup"] == pytest.approx(200 / 40)
+    lo, hi = it.loc["amorgs", ["versus_reuse_ci95_low", "versus_reuse_ci95_high"]]
+    assert lo <= 0.5 <= hi
+    assert (it["eta"] == 0.02).all()
+    # per high-quality solution reuse looks twice as good as per distinct optimum
+    per_hq = expected_running_time(df, 415.0, n_boot=400, seed=3).query("unit == 'iterations'").set_index("sampler")
+    assert per_hq.loc["nearest_alpha", "aRT"] == pytest.approx(40 / 4)
+    again = expected_running_time(df, 415.0, n_boot=400, seed=3, target="distinct", eta=0.02)
+    pd.testing.assert_frame_equal(ert, again)  # seeded
+    with pytest.raises(ValueError, match="target"):
+        expected_running_time(df, 415.0, target="best")
+
+
+def test_reuse_pools_say_how_the_reuse_arm_drew():
+    from amorgs.ablation.statistics import reuse_pools
+
+    assert reuse_pools(arm("uniform", [10], [1])).empty
+    small = arm("nearest_alpha", [10] * 5, [1] * 5).assign(reuse_alpha=0.16, reuse_pool_size=3)
+    large = arm("nearest_alpha_perturbed", [10] * 2, [1] * 2).assign(reuse_alpha=0.16, reuse_pool_size=3)
+    t = reuse_pools(pd.concat([small, large, arm("uniform", [10], [1])], ignore_index=True)).set_index("sampler")
+    assert list(t.index) == ["nearest_alpha", "nearest_alpha_perturbed"]
+    assert t.loc["nearest_alpha", "pool_size"] == 3 and t.loc["nearest_alpha", "starts_with_replacement"] == 2
+    assert t.loc["nearest_alpha", "starts_without_replacement"] == 3 and "then with replacement" in t.loc[
+        "nearest_alpha", "draw"]
+    assert t.loc["nearest_alpha_perturbed", "draw"] == "without replacement"
+
+
+def test_anytime_bands_bracket_the_curve():
+    from amorgs.ablation.statistics import anytime_bands
+
+    df = arm("amorgs", [10, 20, 30, 40], [1, 0, 1, 1], m_f=[420.0, 300.0, 433.0, 425.0], tau_s=[18, 18, 22, 30])
+    b = anytime_bands(df, 415.0, eta=0.02, n_boot=300, seed=1, points=11)
+    assert set(b["unit"]) == {"iterations", "cpu_s"} and set(b["measure"]) == {"best_m_f", "distinct_optima"}
+    d = b[(b["unit"] == "iterations") & (b["measure"] == "distinct_optima")]
+    assert d["budget"].tolist() == pytest.approx(np.linspace(0, 100, 11))
+    assert d["low"].iloc[0] == 0 and (d["low"] <= d["median"]).all() and (d["median"] <= d["high"]).all()
+    assert d["high"].iloc[-1] <= 4 and d["high"].iloc[-1] >= 3
+    m = b[(b["unit"] == "iterations") & (b["measure"] == "best_m_f")]
+    assert m["high"].max() == pytest.approx(433.0) and np.isnan(m["low"].iloc[0])  # nothing found at budget 0
+    pd.testing.assert_frame_equal(b, anytime_bands(df, 415.0, eta=0.02, n_boot=300, seed=1, points=11))
+
+
+def test_iteration_capped_ratio_intervals(three_arms):
+    from amorgs.ablation.statistics import iteration_capped, ratio_of_rates_interval
+
+    t = iteration_capped(three_arms, 415.0, caps=[100, 1000], max_iter=1000, n_boot=300, seed=2)
+    row = t[(t["cap_iterations"] == 1000) & (t["sampler"] == "amorgs")].iloc[0]
+    assert (row["percent_ratio_ci95_low"], row["percent_ratio_ci95_high"]) == pytest.approx(
+        ratio_of_rates_interval(3, 6, 2, 6))
+    assert row["percent_ratio"] == pytest.approx(1.5)
+    assert row["percent_ratio_ci95_low"] < 1.5 < row["percent_ratio_ci95_high"]
+    assert row["throughput_ratio_ci95_low"] <= row["throughput_ratio"] <= row["throughput_ratio_ci95_high"]
+    assert all(math.isnan(v) for v in ratio_of_rates_interval(0, 6, 2, 6))
+
+
+def test_ablation_figures_label_and_bound_what_they_plot(ablation):
+    """Fig. 21's density axes are labelled; Fig. 22 says it plots the high-quality rate and draws intervals;
+    the anytime curves have bands; Fig. 23's panels share one colour range."""
+    from matplotlib.collections import PathCollection, PolyCollection
+
+    from amorgs.ablation.report import summarize
+    from amorgs.figures.ablation import ablation_figures
+
+    truth = ablation[ablation["converged"]].assign(m_f=[425.0, 431.0, 436.0, 433.0])
+    cells = ablation.assign(guess_tau_s=5.0, guess_tau_i=1.0, guess_tau_f=1.0, guess_m_f=[300.0, 500.0] * 4)
+    summary = summarize(cells, truth, 415.0, n_boot=50, iteration_caps=(200, 1000), max_iter=1000)
+    figures = ablation_figures(summary)
+    for ax in figures["fig21_solve_time_histograms"].axes:
+        assert "density" in ax.get_ylabel()
+    fig22 = figures["fig22_capped_convergence"].axes[0]
+    assert "high-quality rate" in fig22.get_ylabel() and "converged within" not in fig22.get_ylabel()
+    assert len(fig22.containers) >= 2  # the bars and their error bars
+    capped = summary.tables["capped"].set_index("sampler")
+    assert (capped["ci95_low"] <= capped["percent_within_cap"]).all()
+    assert (capped["percent_within_cap"] <= capped["ci95_high"]).all()
+    itcap = figures["fig22_iteration_capped"].axes
+    assert "high-quality rate" in itcap[0].get_ylabel()
+    assert all(any(isinstance(c, PolyCollection) for c in ax.collections) for ax in itcap[:3])
+    anytime = figures["ablation_anytime"].axes
+    assert len(anytime) == 4 and all(any(isinstance(c, PolyCollection) for c in ax.collections) for ax in anytime)
+    assert "η-distinct" in anytime[2].get_ylabel()
+    fig23 = figures["fig23_amorgs_diversity"]
+    scatters = [c for ax in fig23.axes for c in ax.collections if isinstance(c, PathCollection)]
+    assert len(scatters) == 3  # samples, solutions, ground truth
+    assert {(c.norm.vmin, c.norm.vmax) for c in scatters} == {(425.0, 436.0)}  # the solutions' and truth's m_f
+    for fig in figures.values():
+        fig.canvas.draw()

@@ -157,13 +157,32 @@ def test_nearest_alpha_reuses_training_rows_unchanged_and_never_the_test_alpha(p
     assert nearest_training_alpha(plain.by_alpha, 0.9) == pytest.approx(1.0)
     x = sampler.sample(0.15, 200, np.random.default_rng(0))
     source = make_valid(hq.loc[np.isclose(hq["alpha"], 0.1), names].to_numpy(), problem)
-    # every draw is one of α = 0.1's solutions, exactly; with replacement (200 draws from fewer rows)
+    # every draw is one of α = 0.1's solutions, exactly; 200 draws from fewer rows: the pool, then repeats
     match = np.all(np.isclose(x[:, None, :], source[None, :, :], atol=1e-12), axis=2)
     assert match.any(axis=1).all() and len(source) < 200
+    assert sampler.pool(0.15) == (0.1, len(source))
+    assert set(match[: len(source)].argmax(axis=1)) == set(range(len(source)))  # the whole pool comes first
     assert not np.any(x[:, 3] == 999.0)
     # restricted to training α: rows at α not in the training list are ignored
     only = NearestAlphaSampler(problem, table, (0.7,))
     assert list(only.by_alpha) == [0.7]
+
+
+@pytest.mark.parametrize("name", ["nearest_alpha", "nearest_alpha_perturbed"])
+def test_reuse_draws_without_replacement_until_the_pool_is_exhausted(name, problem, hq):
+    sampler = in_memory(name, problem, None, hq)
+    source_alpha, pool = sampler.pool(0.85)
+    assert source_alpha == 0.7 and pool == int(np.isclose(hq["alpha"], 0.7).sum())  # 0.85: 0.7 and 1.0 tie
+    # the perturbed arm's noise is zero here so rows can be matched exactly
+    draw = (NearestAlphaPerturbedSampler(problem, hq, TRAIN_ALPHAS, 0.0) if name.endswith("perturbed")
+            else sampler)
+    for n in (1, pool - 1, pool):
+        x = draw.sample(0.85, n, np.random.default_rng(n))
+        assert len(np.unique(x, axis=0)) == n  # n ≤ pool: no repeated row
+    x = draw.sample(0.85, pool + 5, np.random.default_rng(1))
+    assert len(np.unique(x[:pool], axis=0)) == pool  # the pool exhausted first, …
+    assert len(np.unique(x, axis=0)) == pool  # … then the 5 extra draws repeat pool rows
+    np.testing.assert_array_equal(x, draw.sample(0.85, pool + 5, np.random.default_rng(1)))  # seeded
 
 
 def test_nearest_alpha_perturbed_noise_scale(problem, hq):
