@@ -127,6 +127,8 @@ def test_ablation_report_step_writes_every_declared_output(tmp_path, monkeypatch
                 "guess_tau_s": 10.0, "guess_tau_i": 2.0, "guess_tau_f": 2.0, "guess_m_f": 420.0,
                 "iterations": rng.integers(20, 1000, n), "cpu_s": rng.uniform(0.2, 10, n), "wall_s": 1.0,
             }))
+            if sampler == "nearest_alpha":  # a reuse cell records the training α it drew from and its pool
+                cells[-1] = cells[-1].assign(reuse_alpha=0.16 if alpha == 0.15 else 0.8, reuse_pool_size=5)
     for k, fraction in enumerate((0.1, 0.5)):  # AmorGS with models that saw a fraction of the data
         hq = rng.random(8) < 0.2 + 0.2 * k
         cells.append(cells[2].assign(data_fraction=fraction, converged=hq, m_f=np.where(hq, 430.0, 300.0)))
@@ -156,6 +158,12 @@ def test_ablation_report_step_writes_every_declared_output(tmp_path, monkeypatch
     it = curve[(curve["unit"] == "iterations") & (curve["alpha"] == 0.15)].set_index("data_fraction")
     assert list(it.index) == [0.1, 0.5, 1.0] and set(it["sampler"]) == {"amorgs"}
     assert list(it["n"]) == [8, 8, 8]
+    pools = pd.read_csv(f"{t}/ablation_reuse_pool.csv").set_index("alpha")
+    assert list(pools["sampler"]) == ["nearest_alpha"] * 2 and (pools["pool_size"] == 5).all()
+    assert (pools["starts_with_replacement"] == 3).all() and pools.loc[0.85, "reuse_alpha"] == 0.8
+    assert "pool" in Path(f"{t}/ablation_reuse_pool.md").read_text()
+    distinct = pd.read_csv(f"{t}/ablation_ert_distinct.csv")
+    assert (distinct["k_distinct"] <= distinct["k_high_quality"]).all() and (distinct["eta"] == 0.02).all()
     table6 = pd.read_csv(f"{t}/table6.csv")
     assert (table6["n"] == 8).all()  # the learning-curve cells stay out of the main tables
     for name in layout.ABLATION_TABLES:

@@ -409,3 +409,14 @@ def test_ablation_figures_label_and_bound_what_they_plot(ablation):
     assert {(c.norm.vmin, c.norm.vmax) for c in scatters} == {(425.0, 436.0)}  # the solutions' and truth's m_f
     for fig in figures.values():
         fig.canvas.draw()
+
+
+def test_speedup_figure_compares_with_reuse_per_distinct_optimum(three_arms):
+    from amorgs.ablation.statistics import expected_running_time
+    from amorgs.figures.ablation import ablation_speedups
+
+    ert = expected_running_time(three_arms, 415.0, n_boot=50)
+    distinct = expected_running_time(three_arms, 415.0, n_boot=50, target="distinct")
+    labels = [ax.get_ylabel() for ax in ablation_speedups(ert, distinct).axes]
+    assert len(labels) == 4 and any("η-distinct" in label and "reuse" in label for label in labels)
+    assert len(ablation_speedups(ert, distinct.iloc[0:0]).axes) == 3  # no distinct table: the row is left out

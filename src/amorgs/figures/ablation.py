@@ -135,14 +135,17 @@ def _colour(s: str) -> str:
     return f"C{SAMPLER_NAMES.index(s) % 10}" if s in SAMPLER_NAMES else "k"
 
 
-#: Rows of the speed-up figure: (column of the aRT table, unit, what the ratio is against).
-SPEEDUP_ROWS = (("speedup", "iterations", "uniform"), ("versus_reuse", "iterations", "nearest-α reuse"),
-                ("speedup", "cpu_s", "uniform"))
+#: Rows of the speed-up figure: (aRT table: ``ert`` per high-quality solution or ``ert_distinct`` per new
+#: η-distinct optimum, column of it, unit, what the ratio is against).
+SPEEDUP_ROWS = (("ert", "speedup", "iterations", "uniform"), ("ert", "versus_reuse", "iterations", "nearest-α reuse"),
+                ("ert_distinct", "versus_reuse", "iterations", "nearest-α reuse"), ("ert", "speedup", "cpu_s", "uniform"))
+_PER = {"ert": ("HQ", "k_high_quality", "per high-quality solution"),
+        "ert_distinct": ("distinct", "k_distinct", "per new η-distinct optimum")}
 
 
-def _ratio_panel(ax, t: pd.DataFrame, column: str) -> None:
+def _ratio_panel(ax, t: pd.DataFrame, column: str, found: str, tag: str) -> None:
     """Bars of ``column`` (a ratio of aRTs) per sampler of ``t`` with its bootstrap interval; log scale, ∞ drawn
-    at the top."""
+    at the top; each bar says what the arm found (column ``found``, labelled ``tag``)."""
     order = _samplers(t.reset_index())
     finite = t[column].replace([np.inf, -np.inf], np.nan)
     top = float(np.nanmax([finite.max(), t[f"{column}_ci95_high"].replace(np.inf, np.nan).max(), 1.0]) * 2)
@@ -154,32 +157,34 @@ def _ratio_panel(ax, t: pd.DataFrame, column: str) -> None:
             ax.bar(x, y, color=_colour(s), alpha=0.7)
         if np.isfinite(lo) and lo > 0:
             ax.plot([x, x], [lo, top if np.isinf(hi) else hi], color="k", lw=1.2)
-        ax.text(x, y if np.isfinite(y) and y > 0 else 1, f"n_HQ={int(t.loc[s, 'k_high_quality'])}",
+        ax.text(x, y if np.isfinite(y) and y > 0 else 1, f"n_{tag}={int(t.loc[s, found])}",
                 ha="center", va="bottom", fontsize=7)
     ax.axhline(1.0, color="grey", ls="--", lw=0.8)
     ax.set_yscale("log")
     ax.set_xticks(range(len(order)), [_label(s) for s in order], rotation=35, ha="right", fontsize=7)
 
 
-def ablation_speedups(ert: pd.DataFrame) -> Figure:
-    """aRT ratios with bootstrap 95 % intervals, per α (columns): against uniform in iterations, against
-    nearest-α reuse in iterations (when the reuse arm ran; above 1 the arm beats reuse), against uniform in
-    CPU s (rows)."""
+def ablation_speedups(ert: pd.DataFrame, ert_distinct: pd.DataFrame) -> Figure:
+    """aRT ratios with bootstrap 95 % intervals, per α (columns); rows: against uniform in iterations, against
+    nearest-α reuse in iterations per high-quality solution and per new η-distinct optimum (Eq. 12; when the
+    reuse arm ran; above 1 the arm beats reuse), against uniform in CPU s."""
+    tables = {"ert": ert, "ert_distinct": ert_distinct}
     alphas = distinct_alphas(ert["alpha"])
-    rows = [(c, u, who) for c, u, who in SPEEDUP_ROWS
-            if u in set(ert["unit"]) and c in ert.columns and ert.loc[ert["unit"] == u, c].notna().any()]
+    rows = [(name, c, u, who) for name, c, u, who in SPEEDUP_ROWS
+            if len(tab := tables[name]) and u in set(tab["unit"]) and c in tab.columns
+            and tab.loc[tab["unit"] == u, c].notna().any()]
     fig = Figure(figsize=(5 * len(alphas), 3.6 * len(rows)), layout="tight")
     axes = fig.subplots(len(rows), len(alphas), squeeze=False)
-    for i, (column, unit, who) in enumerate(rows):
+    for i, (name, column, unit, who) in enumerate(rows):
+        tag, found, per = _PER[name]
         for j, alpha in enumerate(alphas):
-            this_alpha = rows_at(ert, alpha)
+            this_alpha = rows_at(tables[name], alpha)
             t = this_alpha[this_alpha["unit"] == unit].set_index("sampler")
-            _ratio_panel(axes[i, j], t, column)
-            axes[i, j].set_ylabel(f"aRT({who}) ÷ aRT(arm)\n({'IPOPT iterations' if unit == 'iterations' else 'CPU s'})",
-                                  fontsize=8)
+            _ratio_panel(axes[i, j], t, column, found, tag)
+            axes[i, j].set_ylabel(f"aRT({who}) ÷ aRT(arm), {per}\n"
+                                  f"({'IPOPT iterations' if unit == 'iterations' else 'CPU s'})", fontsize=8)
             axes[i, j].set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
-    fig.suptitle("Expected running time per high-quality solution, as ratios: above 1 the arm is faster "
-                 "(bootstrap 95 % CI)")
+    fig.suptitle("Expected running time as ratios: above 1 the arm is faster (bootstrap 95 % CI)")
     return fig
 
 
@@ -292,7 +297,7 @@ def ablation_figures(summary: AblationSummary) -> dict[str, Figure]:
         "fig22_capped_convergence": fig22_capped_convergence(tables["capped"]),
         "fig23_amorgs_diversity": fig23_amorgs_diversity(solves, summary.ground_truth, beta_kg),
         "fig22_iteration_capped": fig22_iteration_capped(tables["iteration_capped"]),
-        "ablation_speedups": ablation_speedups(tables["ert"]),
+        "ablation_speedups": ablation_speedups(tables["ert"], tables["ert_distinct"]),
         "ablation_beta_sweep": ablation_beta_sweep(tables["beta_sweep"]),
         "ablation_anytime": ablation_anytime(tables["anytime"], tables["anytime_bands"]),
     }
