@@ -71,8 +71,8 @@ def run_predict(job: Job, run) -> None:
     hq = pd.read_parquet(job.input["high_quality"])
     run.log_dataset(hq, job.input["high_quality"], "evaluation")  # the ground truth at the test α
     truth = pd.concat([rows_at(hq, a) for a in s.test_alphas], ignore_index=True)
-    learned = samples[samples["source"] != "uniform"]
-    table = prediction_table(learned, truth, by=("alpha", "source", "data_fraction"))
+    # uniform guesses too: the baseline of the mechanism (how often a guess lands on a plane by chance)
+    table = prediction_table(samples, truth, by=("alpha", "source", "data_fraction"))
     write_parquet(samples, job.output["samples"])
     write_json({"n_samples": s.n_samples, "rows": table.to_dict(orient="records")}, job.output["metrics"])
     for row in table.to_dict(orient="records"):
