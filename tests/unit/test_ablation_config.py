@@ -53,6 +53,21 @@ def test_replicate_jobs_are_expected():
     assert {"model": "lstm", "mseed": "12"} in trained and len(trained) == 2 * 3
 
 
+def test_reuse_replicates_are_slices_of_one_draw():
+    """The model seeds' cells of a reuse arm share one seed and take consecutive slices (issue 21); a learned
+    arm's replicates have their own seeds."""
+    cfg = load("study")
+    rule = steps.registry()["ablation_cell_replicate"]
+    main = steps.registry()["ablation_cell"].settings(cfg, {"alpha": "0.150", "sampler": "nearest_alpha"})
+    reps = [rule.settings(cfg, {"alpha": "0.150", "sampler": "nearest_alpha", "mseed": str(m)})
+            for m in cfg.cr3bp_models.extra_seeds]
+    assert {c.seed for c in reps} == {main.seed} and main.start_offset == 0
+    assert [c.start_offset for c in reps] == [cfg.ablation.n_starts * (k + 1) for k in range(len(reps))]
+    learned = [rule.settings(cfg, {"alpha": "0.150", "sampler": "amorgs", "mseed": str(m)})
+               for m in cfg.cr3bp_models.extra_seeds]
+    assert len({c.seed for c in learned}) == len(learned) and {c.start_offset for c in learned} == {0}
+
+
 def test_iteration_caps_may_not_exceed_max_iter(tmp_path):
     data = mapping()
     data["ablation"]["iteration_caps"] = [10, 60]  # smoke max_iter = 50

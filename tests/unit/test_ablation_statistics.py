@@ -339,12 +339,17 @@ def test_reuse_pools_say_how_the_reuse_arm_drew():
     from amorgs.ablation.statistics import reuse_pools
 
     assert reuse_pools(arm("uniform", [10], [1])).empty
-    small = arm("nearest_alpha", [10] * 5, [1] * 5).assign(reuse_alpha=0.16, reuse_pool_size=3)
-    large = arm("nearest_alpha_perturbed", [10] * 2, [1] * 2).assign(reuse_alpha=0.16, reuse_pool_size=3)
+    # two model seeds' cells of 3 starts, slices 0–2 and 3–5 of one draw from a pool of 4 rows
+    small = pd.concat([arm("nearest_alpha", [10] * 3, [1] * 3).assign(model_seed=11),
+                       arm("nearest_alpha", [10] * 3, [1] * 3).assign(model_seed=12, start=[3, 4, 5])])
+    small = small.assign(reuse_alpha=0.16, reuse_pool_size=4)
+    large = arm("nearest_alpha_perturbed", [10] * 2, [1] * 2).assign(reuse_alpha=0.16, reuse_pool_size=3,
+                                                                     model_seed=11)
     t = reuse_pools(pd.concat([small, large, arm("uniform", [10], [1])], ignore_index=True)).set_index("sampler")
     assert list(t.index) == ["nearest_alpha", "nearest_alpha_perturbed"]
-    assert t.loc["nearest_alpha", "pool_size"] == 3 and t.loc["nearest_alpha", "starts_with_replacement"] == 2
-    assert t.loc["nearest_alpha", "starts_without_replacement"] == 3 and "then with replacement" in t.loc[
+    assert t.loc["nearest_alpha", "pool_size"] == 4 and t.loc["nearest_alpha", "cells"] == 2
+    assert t.loc["nearest_alpha", "n"] == 6 and t.loc["nearest_alpha", "starts_with_replacement"] == 2
+    assert t.loc["nearest_alpha", "starts_without_replacement"] == 4 and "then with replacement" in t.loc[
         "nearest_alpha", "draw"]
     assert t.loc["nearest_alpha_perturbed", "draw"] == "without replacement"
 

@@ -183,6 +183,10 @@ def test_reuse_draws_without_replacement_until_the_pool_is_exhausted(name, probl
     assert len(np.unique(x[:pool], axis=0)) == pool  # the pool exhausted first, …
     assert len(np.unique(x, axis=0)) == pool  # … then the 5 extra draws repeat pool rows
     np.testing.assert_array_equal(x, draw.sample(0.85, pool + 5, np.random.default_rng(1)))  # seeded
+    # the model seeds' cells take consecutive slices of one draw (run_cell's start_offset): pooled, no repeats
+    n = pool // 3
+    cells = [draw.sample(0.85, (k + 1) * n, np.random.default_rng(7))[k * n:] for k in range(3)]
+    assert len(np.unique(np.concatenate(cells), axis=0)) == 3 * n
 
 
 def test_nearest_alpha_perturbed_noise_scale(problem, hq):

@@ -22,6 +22,10 @@ SAMPLER_LABELS = {
 }
 #: Arms that read the filtered high-quality table (restricted to the training α).
 NEEDS_HIGH_QUALITY = BASELINE_SAMPLER_NAMES
+#: Arms that reuse that table's rows as guesses, drawn from a finite pool (issue 21): their cells of every
+#: model seed are slices of ONE seeded draw, so the pooled starts are drawn without replacement until the
+#: pool is exhausted.
+REUSE_SAMPLER_NAMES = ("nearest_alpha", "nearest_alpha_perturbed")
 #: Arm → the checkpoints (keys of ``amorgs.models.samplers.CHECKPOINTS``) it loads.
 NEEDS_MODELS = {
     "uniform": (),

@@ -23,8 +23,11 @@ def run_cell(
     solver_options: OptionsLike = None,
     workers: int = 1,
     progress: bool = True,
+    start_offset: int = 0,
 ) -> pd.DataFrame:
-    """Draw ``n`` guesses with ``default_rng(seed)`` from ``sampler`` and solve them; one row per start.
+    """Draw ``start_offset + n`` guesses with ``default_rng(seed)`` from ``sampler`` and solve the last ``n``;
+    one row per start, ``start`` numbered from ``start_offset`` (cells that share a seed and take consecutive
+    slices are together one draw: the model seeds' cells of a reuse arm).
 
     ``solver_options``: the problem's options object (e.g. :class:`~amorgs.solvers.options.IpoptOptions`; a
     mapping or ``None`` is converted).  The table is the solution table (docs/data-format.md) with a ``sampler``
@@ -32,12 +35,13 @@ def run_cell(
     high-quality rows were drawn, and how many it holds: :meth:`~amorgs.models.samplers.NearestAlphaSampler.pool`).
     """
     prob = get_problem(problem)
-    guesses = sampler.sample(alpha, n, np.random.default_rng(seed))
+    guesses = sampler.sample(alpha, start_offset + n, np.random.default_rng(seed))[start_offset:]
     records, info = solve_guesses(
         problem, alpha, guesses, workers, solver_options, progress=progress, label=f"{problem}/{sampler.name}"
     )
     table = records_table(problem, alpha, seed, guesses, records, prob.variable_names, info["options_hash"])
     table.insert(1, "sampler", sampler.name)
+    table["start"] += start_offset
     if isinstance(sampler, NearestAlphaSampler):
         table["reuse_alpha"], table["reuse_pool_size"] = sampler.pool(alpha)
     return table

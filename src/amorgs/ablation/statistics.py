@@ -343,24 +343,24 @@ def expected_running_time(
 
 
 def reuse_pools(df: pd.DataFrame) -> pd.DataFrame:
-    """How each reuse-arm cell drew its guesses (:class:`~amorgs.models.samplers.NearestAlphaSampler`): per
-    (α, sampler, model seed) with a ``reuse_pool_size`` column, the training α reused (``reuse_alpha``), its
-    pool of high-quality rows (``pool_size``), the cell's starts ``n``, how many of them are pool rows drawn
-    without replacement (min(n, pool)) and how many were drawn with replacement after the pool ran out, and
+    """How the reuse arms drew their guesses (:class:`~amorgs.models.samplers.NearestAlphaSampler`): per
+    (α, sampler) with a ``reuse_pool_size`` column, the training α reused (``reuse_alpha``), its pool of
+    high-quality rows (``pool_size``), the starts ``n`` pooled over the ``cells`` (one per model seed: slices
+    of one seeded draw, ``start`` numbering the draw), how many of them were drawn without replacement
+    (start < pool size: each a pool row not drawn before) and with replacement after the pool ran out, and
     ``draw`` in words — the draw every other table of the report counts.  Empty without reuse cells."""
     if "reuse_pool_size" not in df.columns or df["reuse_pool_size"].isna().all():
         return pd.DataFrame()
-    cells = df[df["reuse_pool_size"].notna()]
-    keys = ["alpha", "sampler", *(["model_seed"] if "model_seed" in cells.columns else [])]
     rows = []
-    for key, g in cells.groupby(keys, sort=True):
+    for (alpha, sampler), g in df[df["reuse_pool_size"].notna()].groupby(["alpha", "sampler"], sort=True):
         pool, n = int(g["reuse_pool_size"].iloc[0]), len(g)
-        fresh = min(n, pool)
-        draw = ("without replacement" if n <= pool else
+        fresh = int((g["start"] < pool).sum())
+        draw = ("without replacement" if fresh == n else
                 f"without replacement for the first {pool} starts (the whole pool), then with replacement")
-        rows.append({**dict(zip(keys, key)), "reuse_alpha": float(g["reuse_alpha"].iloc[0]), "pool_size": pool,
-                     "n": n, "starts_without_replacement": fresh, "starts_with_replacement": n - fresh,
-                     "draw": draw})
+        rows.append({"alpha": alpha, "sampler": sampler, "reuse_alpha": float(g["reuse_alpha"].iloc[0]),
+                     "pool_size": pool, "n": n,
+                     "cells": g["model_seed"].nunique() if "model_seed" in g.columns else 1,
+                     "starts_without_replacement": fresh, "starts_with_replacement": n - fresh, "draw": draw})
     return pd.DataFrame(rows)
 
 

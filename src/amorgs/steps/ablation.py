@@ -12,7 +12,7 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from amorgs import layout
-from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS, SAMPLER_NAMES
+from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS, REUSE_SAMPLER_NAMES, SAMPLER_NAMES
 from amorgs.alphas import alpha_label
 from amorgs.config import Config, Section
 from amorgs.data.seeds import cell_seed
@@ -24,8 +24,11 @@ from amorgs.steps.outputs import finite_metrics, use_agg, write_figures
 
 class CellSettings(Section):
     """One cell: ``starts`` guesses of ``sampler`` at the exact test ``alpha``, drawn with ``seed`` (derived
-    from the ablation seed, α, the sampler and — for a replicate — the model seed), solved with ``solver``.
-    The reuse baselines draw from the training-α rows (``train_alphas``) of the high-quality table."""
+    from the ablation seed, α, the sampler and — for a replicate of a learned arm — the model seed), solved
+    with ``solver``.  The reuse baselines draw from the training-α rows (``train_alphas``) of the high-quality
+    table; their cells of every model seed share one seed and take consecutive slices of one draw
+    (``start_offset`` = the model seed's position × ``starts``), so the pooled starts are drawn without
+    replacement until the pool is exhausted."""
 
     alpha: float
     sampler: Literal[SAMPLER_NAMES]  # type: ignore[valid-type]
@@ -37,22 +40,25 @@ class CellSettings(Section):
     perturbation_scale: Annotated[float, Field(ge=0)]
     gmm_components: Annotated[int, Field(ge=1)]
     data_fraction: Annotated[float, Field(gt=0, le=1)] = 1.0
+    start_offset: Annotated[int, Field(ge=0)] = 0
 
 
 def _cell_settings(cfg: Config, w: Wildcards) -> CellSettings:
     a, cr3bp = cfg.ablation, cfg.problems.cr3bp
     alpha = cr3bp.alpha_values()[w["alpha"]]
     replicate, fraction = "mseed" in w, float(w.get("fraction", 1.0))
-    name = w["sampler"]
-    if replicate:
+    name, offset = w["sampler"], 0
+    model_seed = int(w["mseed"]) if replicate else cfg.cr3bp_models.seed
+    if name in REUSE_SAMPLER_NAMES:  # one draw over the model seeds' cells: each takes its slice
+        offset = cfg.cr3bp_models.seeds.index(model_seed) * a.n_starts
+    elif replicate:
         name += f"@seed={w['mseed']}"
     if "fraction" in w:
         name += f"@fraction={w['fraction']}"
-    return CellSettings(alpha=alpha, sampler=w["sampler"],
-                        model_seed=int(w["mseed"]) if replicate else cfg.cr3bp_models.seed,
+    return CellSettings(alpha=alpha, sampler=w["sampler"], model_seed=model_seed,
                         starts=a.n_starts, seed=cell_seed(a.seed, "cr3bp", alpha, name), solver=cr3bp.solver,
                         train_alphas=cr3bp.alphas.train_values(), perturbation_scale=a.perturbation_scale,
-                        gmm_components=a.gmm_components, data_fraction=fraction)
+                        gmm_components=a.gmm_components, data_fraction=fraction, start_offset=offset)
 
 
 def run_cell(job: Job, run) -> None:
@@ -75,7 +81,7 @@ def run_cell(job: Job, run) -> None:
     sampler = build_sampler(s.sampler, get_problem("cr3bp"), os.path.dirname(models[0]) if models else None,
                             high_quality=hq, train_alphas=s.train_alphas, perturbation_scale=s.perturbation_scale,
                             gmm_components=s.gmm_components)
-    df = solve_cell("cr3bp", s.alpha, sampler, s.starts, s.seed, s.solver, job.threads)
+    df = solve_cell("cr3bp", s.alpha, sampler, s.starts, s.seed, s.solver, job.threads, start_offset=s.start_offset)
     df.insert(2, "model_seed", s.model_seed)
     if s.data_fraction < 1.0:  # a learning-curve cell: its models saw this fraction of the training rows
         df.insert(3, "data_fraction", s.data_fraction)
