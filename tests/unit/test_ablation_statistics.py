@@ -385,7 +385,7 @@ def test_iteration_capped_ratio_intervals(three_arms):
 def test_ablation_figures_label_and_bound_what_they_plot(ablation):
     """Fig. 21's density axes are labelled; Fig. 22 says it plots the high-quality rate and draws intervals;
     the anytime curves have bands; Fig. 23's panels share one colour range."""
-    from matplotlib.collections import PathCollection, PolyCollection
+    from matplotlib.collections import LineCollection, PathCollection, PolyCollection
 
     from amorgs.ablation.report import summarize
     from amorgs.figures.ablation import ablation_figures
@@ -404,7 +404,7 @@ def test_ablation_figures_label_and_bound_what_they_plot(ablation):
     assert (capped["percent_within_cap"] <= capped["ci95_high"]).all()
     itcap = figures["fig22_iteration_capped"].axes
     assert "high-quality rate" in itcap[0].get_ylabel()
-    assert all(any(isinstance(c, PolyCollection) for c in ax.collections) for ax in itcap[:3])
+    assert all(any(isinstance(c, LineCollection) for c in ax.collections) for ax in itcap[:3])  # intervals
     anytime = figures["ablation_anytime"].axes
     assert len(anytime) == 4 and all(any(isinstance(c, PolyCollection) for c in ax.collections) for ax in anytime)
     assert "η-distinct" in anytime[2].get_ylabel()

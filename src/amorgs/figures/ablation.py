@@ -191,7 +191,8 @@ def ablation_speedups(ert: pd.DataFrame, ert_distinct: pd.DataFrame) -> Figure:
 def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
     """Fig. 22 done with a fixed iteration cap: per α (columns), as a function of the cap, the high-quality
     rate within the cap (Wilson 95 %, top), the paper's ratio of percentages (Katz 95 %, middle) and the
-    throughput ratio (bootstrap 95 %, bottom), arm ÷ uniform; intervals as bands."""
+    throughput ratio (bootstrap 95 %, bottom), arm ÷ uniform; intervals as vertical bars (the arms side by
+    side), an unbounded upper end as a bar to the panel's top with an arrow head."""
     if capped.empty:
         fig = Figure(figsize=(5, 3))
         ax = fig.subplots()
@@ -208,13 +209,21 @@ def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
                "HQ per iteration ÷ uniform's\n(bootstrap 95 %)"))
     for j, alpha in enumerate(alphas):
         t = rows_at(capped, alpha)
-        for s in _samplers(t):
-            g = t[t["sampler"] == s].sort_values("cap_iterations")
-            for ax, (col, lo, hi, _) in zip(axes[:, j], panels):
+        samplers = _samplers(t)
+        for ax, (col, lo, hi, _) in zip(axes[:, j], panels):
+            columns = [c for c in (col, lo, hi) if c in t]
+            finite = t[columns].replace([np.inf, -np.inf], np.nan).to_numpy(dtype=float)
+            top = 1.1 * np.nanmax(finite) if np.isfinite(finite).any() else 1.0
+            for k, s in enumerate(samplers):
+                g = t[t["sampler"] == s].sort_values("cap_iterations")
                 y, low, high = (g[c].replace(np.inf, np.nan) if c in g else pd.Series(np.nan, index=g.index)
                                 for c in (col, lo, hi))
-                ax.plot(g["cap_iterations"], y, "o-", color=_colour(s), label=_label(s), ms=3)
-                ax.fill_between(g["cap_iterations"], low, high, color=_colour(s), alpha=0.15, lw=0)
+                x = g["cap_iterations"] * 1.04 ** (k - (len(samplers) - 1) / 2)  # side by side on the log axis
+                ax.plot(x, y, "o-", color=_colour(s), label=_label(s), ms=3)
+                unbounded = np.isinf(g[hi]) if hi in g else pd.Series(False, index=g.index)
+                ax.vlines(x, low, high.where(~unbounded, top), color=_colour(s), lw=1.2, alpha=0.7)
+                ax.plot(x[unbounded & low.notna()], np.full(int((unbounded & low.notna()).sum()), top), "^",
+                        color=_colour(s), ms=4)
         axes[0, j].set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
         for ax, (*_, label) in zip(axes[:, j], panels):
             ax.set_ylabel(label, fontsize=8)
