@@ -94,6 +94,12 @@ def test_reuse_baseline_cells_on_library_data():
         assert list(cell["sampler"].unique()) == [sampler.name] and len(cell) == 2
         again = sampler.sample(0.85, 2, np.random.default_rng(3))
         np.testing.assert_array_equal(cell[[f"guess_{v}" for v in problem.variable_names]].to_numpy(), again)
+        assert (cell["reuse_alpha"] == 0.8).all() and (cell["reuse_pool_size"] == sampler.pool(0.85)[1]).all()
+    # a later model seed's cell: the next slice of the same draw, numbered on
+    later = run_cell("cr3bp", 0.85, sampler, n=1, seed=3, solver_options={"max_iter": 300, "max_wall_s": 60.0},
+                     progress=False, start_offset=1)
+    assert later["start"].tolist() == [1]
+    np.testing.assert_array_equal(later[[f"guess_{v}" for v in problem.variable_names]].to_numpy(), again[1:])
 
 
 def test_ablation_cell_step_nearest_alpha(tmp_path, monkeypatch):
@@ -114,5 +120,6 @@ def test_ablation_cell_step_nearest_alpha(tmp_path, monkeypatch):
     table = pd.read_parquet("cell.parquet")
     assert len(table) == cfg.ablation.n_starts and set(table["sampler"]) == {"nearest_alpha"}
     assert set(table["model_seed"]) == {cfg.cr3bp_models.seed}
+    assert table["reuse_pool_size"].iloc[0] > 0 and table["start"].tolist() == list(range(cfg.ablation.n_starts))
     with pytest.raises(InputError, match="nearest_alpha needs the high-quality table"):
         steps.run_step("ablation_cell", cfg, cell, {}, {"table": "x.parquet"})
