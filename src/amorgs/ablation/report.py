@@ -229,7 +229,8 @@ MARKDOWN_TITLES = {
            "versus_reuse = aRT(nearest_alpha) ÷ aRT(arm), > 1: the arm beats reuse; bootstrap 95 %",
     "ert_distinct": "What a designer wants: aRT = cost spent ÷ new η-distinct high-quality optima (paper Eq. 12; "
                     "each arm's starts in order, a solution counts when farther than η from every one counted "
-                    "before — repeats find nothing new); speed-up and versus_reuse as in ablation_ert, bootstrap 95 %",
+                    "before — repeats find nothing new); speed-up and versus_reuse as in ablation_ert, "
+                    "bootstrap 95 %",
     "reuse_pool": "Reuse arms: the training α reused, its pool of high-quality rows, and the draw every table of "
                   "this report counts — without replacement until the pool is exhausted, then with replacement",
     "iteration_capped": "Fig. 22 with a fixed iteration cap: % within cap (Wilson 95 %), throughput, ratios to "

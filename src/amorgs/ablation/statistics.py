@@ -92,8 +92,8 @@ def capped_study(
     """Fig. 22 and the headline number for ONE α.
 
     Returns a table per sampler (% converging into the HQ set within the cap with its 95 % Wilson interval,
-    HQ found per CPU-hour) and a dict with the cap and the search acceleration (reference ÷ baseline HQ per CPU-second) with a
-    bootstrap 95% interval (rows resampled within each sampler).
+    HQ found per CPU-hour) and a dict with the cap and the search acceleration (reference ÷ baseline HQ per
+    CPU-second) with a bootstrap 95% interval (rows resampled within each sampler).
     """
     if df["alpha"].nunique() != 1:
         raise ValueError("capped_study takes the cells of one α")
@@ -232,8 +232,8 @@ ERT_TARGETS = ("high_quality", "distinct")
 
 
 def _ert(cost: np.ndarray, hq: np.ndarray) -> float:
-    k = int(hq.sum())
-    return float(cost.sum()) / k if k else math.inf
+    """aRT per high-quality solution of one arm (``hq``: its per-start flags)."""
+    return _art(cost, _found_counter(hq))
 
 
 def _new_optima(hq: np.ndarray, features: np.ndarray, eta: float):
@@ -560,10 +560,6 @@ def anytime_curves(df: pd.DataFrame, beta_kg: float, eta: float | None = None) -
             "best_m_f": best.to_numpy(dtype=float), "distinct_optima": np.cumsum(new),
         }))
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-
-
-#: The anytime measures with bootstrap bands: best high-quality m_f (kg) and new η-distinct optima found.
-ANYTIME_MEASURES = ("best_m_f", "distinct_optima")
 
 
 def anytime_bands(

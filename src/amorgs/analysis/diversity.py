@@ -7,8 +7,9 @@ remaining conflicts (ties: higher m_f, then lower row index), drop it and its ne
 η-diverse and *maximal* — no left-out solution can be added — and on sparse conflict graphs it is usually
 close to the maximum.  A search that finds solutions one after another holds a different η-diverse set:
 :func:`first_come_diverse` keeps each solution farther than η from every one kept before it (the *new*
-η-distinct optima), so the set only grows as solutions arrive; it is maximal too, but may be smaller.  η⁻ (Eq. 13) is the smallest nearest-neighbour distance in the set; η must exceed it
-for Eq. 12 to remove anything.
+η-distinct optima), so the set only grows as solutions arrive; it is maximal too, but may be smaller.
+η⁻ (Eq. 13) is the smallest nearest-neighbour distance in the set; η must exceed it for Eq. 12 to remove
+anything.
 
 Surrogate metric (the paper suggests a Euclidean one on the decision space), chosen by ``features``:
 
