@@ -226,7 +226,8 @@ MARKDOWN_TITLES = {
     "rates": "High-quality rate per arm: k of n starts, Wilson 95 % interval, one-sided Fisher p (arm > reference)",
     "beta_sweep": "High-quality rate vs β per arm (Wilson 95 %, one-sided Fisher p)",
     "ert": "Expected running time aRT = cost spent ÷ high-quality found; speed-up = aRT(uniform) ÷ aRT(arm); "
-           "versus_reuse = aRT(nearest_alpha) ÷ aRT(arm), > 1: the arm beats reuse; bootstrap 95 %",
+           "versus_reuse = aRT(nearest_alpha) ÷ aRT(arm), > 1: the arm beats reuse; bootstrap 95 %; the reuse "
+           "arms drawn as ablation_reuse_pool states",
     "ert_distinct": "What a designer wants: aRT = cost spent ÷ new η-distinct high-quality optima (paper Eq. 12; "
                     "each arm's starts in order, a solution counts when farther than η from every one counted "
                     "before — repeats find nothing new); speed-up and versus_reuse as in ablation_ert, "
