@@ -53,6 +53,7 @@ DOC = ROOT / "docs" / "performance.md"
 #: The solver defaults before issue 9 §1 (explicit, so the comparison survives later default changes).
 PREVIOUS = IpoptOptions(
     compile_flags="-O2",
+    lbfgs_aug_solver="sherman-morrison",
     stall_window=0,
     transcription=TranscriptionOptions(coast="rk8", steps_per_segment=24, steps_per_coast=320,
                                        step_scaling_alpha=0.3, scale_down=False),
@@ -72,7 +73,7 @@ VARIANTS = {
     "+ compile flags -O3 -march=native -ffp-contract=off": _with(PREVIOUS, compile_flags="-O3 -march=native -ffp-contract=off"),
     "+ stall abort": _with(PREVIOUS, stall_window=300, stall_factor=0.5),
     "+ steps scaled down above α = 0.3": _with(PREVIOUS, transcription={"scale_down": True}),
-    "new default (compile flags only; abort off, steps unchanged)": _with(IpoptOptions(), transcription={"coast": "rk8"}),
+    "new default (compile flags only; abort off, steps unchanged)": _with(IpoptOptions(), lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"}),
 }
 #: ``--compare``: the final old-vs-new table.
 COMPARE = {k: v for k, v in VARIANTS.items() if k.startswith(("previous", "new"))}
@@ -82,7 +83,8 @@ ABORT_PAIRS = {
 }
 #: ``--steps``: the default vs fewer steps at high α (same starts).
 STEPS_DEFAULT = "default (24/seg ×√(0.3/α) below 0.3, 320/coast)"
-_RK8_COASTS = _with(IpoptOptions(), transcription={"coast": "rk8"})
+#: The solver before issue 22: RK8 coasts and IPOPT's Sherman–Morrison L-BFGS solve (options_hash 42bf7b6dd566).
+_RK8_COASTS = _with(IpoptOptions(), lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"})
 STEPS = {
     STEPS_DEFAULT: _RK8_COASTS,
     "scale_down (⌈24·√(0.3/α)⌉/seg above 0.3 too)": _with(_RK8_COASTS, transcription={"scale_down": True}),
@@ -110,12 +112,13 @@ QUASI_NEWTON = {
     "SR1 update (limited_memory_update_type sr1)": IPOPT_SCREEN["SR1 update"],
     "L-BFGS history 6": IPOPT_SCREEN["L-BFGS history 6"],
 }
-#: ``--coast``: the coasts integrated with RK8 at every evaluation (the default before issue 22) vs read off
-#: the B-spline of the ballistic flow (the default since), on the same starts.
-COAST_DEFAULT = "RK8 coasts (320 steps each; default before issue 22)"
+#: ``--coast``: the default before issue 22 (coasts integrated with RK8 at every evaluation, Sherman–Morrison
+#: L-BFGS) vs the default since (coasts read off the B-spline of the ballistic flow, extended L-BFGS system),
+#: on the same starts.
+COAST_DEFAULT = "before issue 22 (RK8 coasts 320 steps, L-BFGS Sherman–Morrison)"
 COAST = {
     COAST_DEFAULT: _RK8_COASTS,
-    "interpolated coasts (B-spline of the flow, 0.001 TU; default)": IpoptOptions(),
+    "issue 22 default (interpolated coasts 0.001 TU, L-BFGS extended system)": IpoptOptions(),
 }
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.

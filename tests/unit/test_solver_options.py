@@ -15,18 +15,18 @@ from amorgs.problems import get_problem
 from amorgs.solvers.multistart import UNCAPPED_TIMEOUT_S, resolve_options, worker_timeout_s
 from amorgs.solvers.options import BfgsOptions, IpoptOptions, TranscriptionOptions, as_options
 
-#: options_hash of the options before issue 22 (RK8 coasts), computed before the options became typed
-#: (issue 10): the hashes of the first library generation's rows must not change — an 'rk8' transcription
-#: still hashes like this.
+#: options_hash of the options before issue 22 (RK8 coasts, Sherman–Morrison L-BFGS), computed before the
+#: options became typed (issue 10): the hashes of the first library generation's rows must not change — those
+#: options, spelled out, still hash like this.
 HASH_RK8_DEFAULT_CONFIG = "42bf7b6dd566"  # cr3bp, config/default.yaml & library.yaml: max_iter 1000, max_wall_s 300.0
 HASH_RK8_SMOKE_CONFIG = "c6fd4f9f0bf5"  # cr3bp, config/smoke.yaml: max_iter 50, max_wall_s 60.0
 HASH_RK8_PAPER_CONFIG = "4fd020ee7912"  # cr3bp, config/paper.yaml: max_iter 1000, max_wall_s 500.0
-#: Since issue 22 (interpolated coasts): the second library generation's hash.
-HASH_DEFAULT_CONFIG = "5589dd21c0ef"
-HASH_SMOKE_CONFIG = "cc78d27683b5"
-HASH_PAPER_CONFIG = "087b38db5767"
+#: Since issue 22 (interpolated coasts, extended L-BFGS system): the second library generation's hash.
+HASH_DEFAULT_CONFIG = "027348a77f01"
+HASH_SMOKE_CONFIG = "fbb976b18537"
+HASH_PAPER_CONFIG = "3e04f193959b"
 HASH_DEJONG_CONFIG = "817e088f0114"  # dejong, every config: gtol 1e-6, maxiter 500
-RK8 = {"transcription": {"coast": "rk8"}}
+RK8 = {"lbfgs_aug_solver": "sherman-morrison", "transcription": {"coast": "rk8"}}
 
 
 @pytest.mark.parametrize(
@@ -46,8 +46,9 @@ def test_hash_of_todays_config_options_is_unchanged(options_type, mapping, expec
 
 
 def test_the_options_of_the_coast_kind_not_in_use_are_not_hashed():
-    rk8 = IpoptOptions(transcription=TranscriptionOptions(coast="rk8"))
-    assert rk8.digest() == IpoptOptions(transcription=TranscriptionOptions(coast="rk8", coast_grid_step=0.01)).digest()
+    rk8 = IpoptOptions.from_mapping(RK8)
+    assert rk8.digest() == IpoptOptions.from_mapping(
+        {**RK8, "transcription": {"coast": "rk8", "coast_grid_step": 0.01}}).digest()
     spline = IpoptOptions()
     assert spline.transcription.coast == "interpolant"
     assert spline.digest() == IpoptOptions(transcription=TranscriptionOptions(steps_per_coast=640, coast_pieces=16)).digest()
@@ -71,6 +72,8 @@ def test_hash_changes_with_any_field():
         IpoptOptions(stall_window=300),
         IpoptOptions(ipopt_options={"mu_strategy": "monotone"}),
         IpoptOptions(transcription=TranscriptionOptions(steps_per_segment=30)),
+        IpoptOptions(lbfgs_aug_solver="sherman-morrison"),
+        IpoptOptions(transcription=TranscriptionOptions(coast="rk8")),
     ]
     assert len({base.digest(), *(o.digest() for o in changed)}) == 1 + len(changed)
     assert BfgsOptions(maxiter=5).digest() != BfgsOptions().digest()
@@ -129,6 +132,7 @@ def test_unknown_key_is_rejected_naming_it(options_type):
         (IpoptOptions, {"transcription": {"no_such_option": 1}}, r"transcription\.no_such_option"),
         (IpoptOptions, {"transcription": {"steps_per_coast": 100, "coast_pieces": 8}}, "coast_pieces"),
         (IpoptOptions, {"transcription": {"coast": "cvodes"}}, r"transcription\.coast"),
+        (IpoptOptions, {"lbfgs_aug_solver": "dense"}, "lbfgs_aug_solver"),
         (IpoptOptions, {"transcription": {"coast_grid_step": 0.0}}, r"transcription\.coast_grid_step"),
         (BfgsOptions, {"gtol": 0.0}, "gtol"),
         (BfgsOptions, {"maxiter": 0}, "maxiter"),

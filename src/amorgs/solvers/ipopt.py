@@ -125,6 +125,7 @@ def ipopt_settings(options: IpoptOptions) -> dict:
         "mu_strategy": "adaptive",
         "hessian_approximation": options.hessian,
         "limited_memory_max_history": options.lbfgs_memory,
+        "limited_memory_aug_solver": options.lbfgs_aug_solver,
         "linear_solver": options.linear_solver,
         "print_level": 0,
         "sb": "yes",
