@@ -11,6 +11,7 @@ with the default solver options unless a variant is chosen, and prints and write
     python benchmarks/solve.py --steps --alphas 0.5 1.0 --jobs 2 --max-wall-s 600   # default vs scale_down
     python benchmarks/solve.py --ipopt-screen --starts 10 --alphas 1.0   # IPOPT options, one at a time
     python benchmarks/solve.py --quasi-newton --alphas 0.1 1.0 --max-wall-s 600   # L-BFGS 30 vs SR1, history 6
+    python benchmarks/solve.py --coast --starts 200 --alphas 0.1 1.0 --jobs 2 --max-wall-s 600   # issue 22
 
 ``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
 the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
@@ -52,9 +53,10 @@ DOC = ROOT / "docs" / "performance.md"
 #: The solver defaults before issue 9 §1 (explicit, so the comparison survives later default changes).
 PREVIOUS = IpoptOptions(
     compile_flags="-O2",
+    lbfgs_aug_solver="sherman-morrison",
     stall_window=0,
-    transcription=TranscriptionOptions(steps_per_segment=24, steps_per_coast=320, step_scaling_alpha=0.3,
-                                       scale_down=False),
+    transcription=TranscriptionOptions(coast="rk8", steps_per_segment=24, steps_per_coast=320,
+                                       step_scaling_alpha=0.3, scale_down=False),
 )
 
 
@@ -71,7 +73,7 @@ VARIANTS = {
     "+ compile flags -O3 -march=native -ffp-contract=off": _with(PREVIOUS, compile_flags="-O3 -march=native -ffp-contract=off"),
     "+ stall abort": _with(PREVIOUS, stall_window=300, stall_factor=0.5),
     "+ steps scaled down above α = 0.3": _with(PREVIOUS, transcription={"scale_down": True}),
-    "new default (compile flags only; abort off, steps unchanged)": IpoptOptions(),
+    "new default (compile flags only; abort off, steps unchanged)": _with(IpoptOptions(), lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"}),
 }
 #: ``--compare``: the final old-vs-new table.
 COMPARE = {k: v for k, v in VARIANTS.items() if k.startswith(("previous", "new"))}
@@ -81,11 +83,13 @@ ABORT_PAIRS = {
 }
 #: ``--steps``: the default vs fewer steps at high α (same starts).
 STEPS_DEFAULT = "default (24/seg ×√(0.3/α) below 0.3, 320/coast)"
+#: The solver before issue 22: RK8 coasts and IPOPT's Sherman–Morrison L-BFGS solve (options_hash 42bf7b6dd566).
+_RK8_COASTS = _with(IpoptOptions(), lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"})
 STEPS = {
-    STEPS_DEFAULT: IpoptOptions(),
-    "scale_down (⌈24·√(0.3/α)⌉/seg above 0.3 too)": _with(IpoptOptions(), transcription={"scale_down": True}),
-    "scale_down + 240/coast": _with(IpoptOptions(), transcription={"scale_down": True, "steps_per_coast": 240,
-                                                                   "coast_pieces": 8}),
+    STEPS_DEFAULT: _RK8_COASTS,
+    "scale_down (⌈24·√(0.3/α)⌉/seg above 0.3 too)": _with(_RK8_COASTS, transcription={"scale_down": True}),
+    "scale_down + 240/coast": _with(_RK8_COASTS, transcription={"scale_down": True, "steps_per_coast": 240,
+                                                                "coast_pieces": 8}),
 }
 #: ``--ipopt-screen``: IPOPT options that leave the NLP alone, one at a time on top of the default (a cheap
 #: screen on few starts; what survives it goes to a paired comparison such as ``--quasi-newton``).
@@ -108,9 +112,17 @@ QUASI_NEWTON = {
     "SR1 update (limited_memory_update_type sr1)": IPOPT_SCREEN["SR1 update"],
     "L-BFGS history 6": IPOPT_SCREEN["L-BFGS history 6"],
 }
+#: ``--coast``: the default before issue 22 (coasts integrated with RK8 at every evaluation, Sherman–Morrison
+#: L-BFGS) vs the default since (coasts read off the B-spline of the ballistic flow, extended L-BFGS system),
+#: on the same starts.
+COAST_DEFAULT = "before issue 22 (RK8 coasts 320 steps, L-BFGS Sherman–Morrison)"
+COAST = {
+    COAST_DEFAULT: _RK8_COASTS,
+    "issue 22 default (interpolated coasts 0.001 TU, L-BFGS extended system)": IpoptOptions(),
+}
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.
-PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT)}
+PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT), "coast": (COAST, COAST_DEFAULT)}
 TOF_BAND_TU = 6.3
 BOOTSTRAP = 10_000
 
@@ -278,6 +290,8 @@ def main() -> None:
                     help="screen IPOPT options that leave the NLP alone, one at a time (few starts)")
     ap.add_argument("--quasi-newton", action="store_true",
                     help="default L-BFGS vs the SR1 update and a short L-BFGS history, same starts")
+    ap.add_argument("--coast", action="store_true",
+                    help="RK8 coasts vs interpolated coasts (the issue-22 default), same starts")
     ap.add_argument("--max-wall-s", type=float, default=None,
                     help="raise the wall-time safety net (on a loaded machine it would cut solves short)")
     ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
@@ -299,7 +313,7 @@ def main() -> None:
         write_section("scaling", text)
         return
 
-    paired = "steps" if args.steps else "quasi_newton" if args.quasi_newton else None
+    paired = "steps" if args.steps else "quasi_newton" if args.quasi_newton else "coast" if args.coast else None
     variants = (VARIANTS if args.variants else COMPARE if args.compare else PAIRED[paired][0] if paired
                 else IPOPT_SCREEN if args.ipopt_screen else {"default": IpoptOptions()})
     if paired:  # α-major, so that the runs compared on the same starts run at about the same time

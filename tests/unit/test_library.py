@@ -255,3 +255,35 @@ def test_grow_runs_a_real_batch_and_exports_it(tmp_path, monkeypatch):
     assert sorted((e["alpha"], e["shards"][0]) for e in manifest["files"]) == [(0.6, 0), (0.6, 1), (0.9, 0), (0.9, 1)]
     table = read_library(lib, "cr3bp", "0.600")
     assert sorted(table["shard"]) == [0, 1] and (table["iterations"] <= 20).all()
+
+
+def test_export_stores_guesses_by_seed_and_reads_them_back_bit_for_bit(tmp_path):
+    import pyarrow.parquet as pq
+
+    solutions = real_shards(tmp_path, n=2)
+    original = pd.concat([pd.read_parquet(p) for p in sorted(solutions.glob("alpha=*/shard-*.parquet"))],
+                         ignore_index=True)
+    lib = tmp_path / "library"
+    export_library(solutions, lib, "cr3bp", CONFIG)
+    (path,) = library_files(lib, "cr3bp", "0.500")
+    stored_columns = pq.ParquetFile(path).schema_arrow.names
+    assert not [c for c in stored_columns if c.startswith("guess_")]  # compact: 64 columns fewer on disk
+    back = read_library(lib, "cr3bp", "0.500").drop(columns=["source"], errors="ignore")
+    assert list(back.columns) == list(original.columns)
+    pd.testing.assert_frame_equal(back, original, check_exact=True)
+    manifest = read_manifest(lib, "cr3bp")
+    assert manifest["files"][0]["guesses"] == "seeded"
+    # exported under today's library config (interpolated coasts): generation 2, with its totals
+    (generation,) = manifest["generations"]
+    assert generation["generation"] == manifest["files"][0]["generation"] == 2
+    assert generation["rows"] == len(original) and generation["options_hashes"] == sorted(set(original["options_hash"]))
+
+
+def test_export_refuses_guesses_that_are_not_the_seeded_draw(tmp_path):
+    solutions = real_shards(tmp_path, n=1)
+    shard = next(solutions.glob("alpha=*/shard-*.parquet"))
+    df = pd.read_parquet(shard)
+    df.loc[3, "guess_tau_s"] += 1e-12
+    df.to_parquet(shard, index=False)
+    with pytest.raises(InputError, match=r"initial guesses are not the seeded uniform draw"):
+        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)

@@ -15,17 +15,26 @@ from amorgs.problems import get_problem
 from amorgs.solvers.multistart import UNCAPPED_TIMEOUT_S, resolve_options, worker_timeout_s
 from amorgs.solvers.options import BfgsOptions, IpoptOptions, TranscriptionOptions, as_options
 
-#: options_hash of today's options, computed before the options became typed (issue 10) — the hashes of the
-#: rows in data/library and of every workflow run must not change.
-HASH_DEFAULT_CONFIG = "42bf7b6dd566"  # cr3bp, config/default.yaml & library.yaml: max_iter 1000, max_wall_s 300.0
-HASH_SMOKE_CONFIG = "c6fd4f9f0bf5"  # cr3bp, config/smoke.yaml: max_iter 50, max_wall_s 60.0
-HASH_PAPER_CONFIG = "4fd020ee7912"  # cr3bp, config/paper.yaml: max_iter 1000, max_wall_s 500.0
+#: options_hash of the options before issue 22 (RK8 coasts, Sherman–Morrison L-BFGS), computed before the
+#: options became typed (issue 10): the hashes of the first library generation's rows must not change — those
+#: options, spelled out, still hash like this.
+HASH_RK8_DEFAULT_CONFIG = "42bf7b6dd566"  # cr3bp, config/default.yaml & library.yaml: max_iter 1000, max_wall_s 300.0
+HASH_RK8_SMOKE_CONFIG = "c6fd4f9f0bf5"  # cr3bp, config/smoke.yaml: max_iter 50, max_wall_s 60.0
+HASH_RK8_PAPER_CONFIG = "4fd020ee7912"  # cr3bp, config/paper.yaml: max_iter 1000, max_wall_s 500.0
+#: Since issue 22 (interpolated coasts, extended L-BFGS system): the second library generation's hash.
+HASH_DEFAULT_CONFIG = "027348a77f01"
+HASH_SMOKE_CONFIG = "fbb976b18537"
+HASH_PAPER_CONFIG = "3e04f193959b"
 HASH_DEJONG_CONFIG = "817e088f0114"  # dejong, every config: gtol 1e-6, maxiter 500
+RK8 = {"lbfgs_aug_solver": "sherman-morrison", "transcription": {"coast": "rk8"}}
 
 
 @pytest.mark.parametrize(
     ("options_type", "mapping", "expected"),
     [
+        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0, **RK8}, HASH_RK8_DEFAULT_CONFIG),
+        (IpoptOptions, {"max_iter": 50, "max_wall_s": 60.0, **RK8}, HASH_RK8_SMOKE_CONFIG),
+        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 500.0, **RK8}, HASH_RK8_PAPER_CONFIG),
         (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0}, HASH_DEFAULT_CONFIG),
         (IpoptOptions, {"max_iter": 50, "max_wall_s": 60.0}, HASH_SMOKE_CONFIG),
         (IpoptOptions, {"max_iter": 1000, "max_wall_s": 500.0}, HASH_PAPER_CONFIG),
@@ -34,6 +43,18 @@ HASH_DEJONG_CONFIG = "817e088f0114"  # dejong, every config: gtol 1e-6, maxiter 
 )
 def test_hash_of_todays_config_options_is_unchanged(options_type, mapping, expected):
     assert options_type.from_mapping(mapping).digest() == expected
+
+
+def test_the_options_of_the_coast_kind_not_in_use_are_not_hashed():
+    rk8 = IpoptOptions.from_mapping(RK8)
+    assert rk8.digest() == IpoptOptions.from_mapping(
+        {**RK8, "transcription": {"coast": "rk8", "coast_grid_step": 0.01}}).digest()
+    spline = IpoptOptions()
+    assert spline.transcription.coast == "interpolant"
+    assert spline.digest() == IpoptOptions(transcription=TranscriptionOptions(steps_per_coast=640, coast_pieces=16)).digest()
+    assert spline.digest() != IpoptOptions(transcription=TranscriptionOptions(coast_grid_step=0.002)).digest()
+    for opts in (rk8, spline):  # the settings a job receives rebuild the same options (and hash)
+        assert IpoptOptions.from_mapping(opts.to_dict()) == opts
 
 
 def test_defaults_are_the_default_config_and_hash_like_it():
@@ -51,6 +72,8 @@ def test_hash_changes_with_any_field():
         IpoptOptions(stall_window=300),
         IpoptOptions(ipopt_options={"mu_strategy": "monotone"}),
         IpoptOptions(transcription=TranscriptionOptions(steps_per_segment=30)),
+        IpoptOptions(lbfgs_aug_solver="sherman-morrison"),
+        IpoptOptions(transcription=TranscriptionOptions(coast="rk8")),
     ]
     assert len({base.digest(), *(o.digest() for o in changed)}) == 1 + len(changed)
     assert BfgsOptions(maxiter=5).digest() != BfgsOptions().digest()
@@ -108,6 +131,9 @@ def test_unknown_key_is_rejected_naming_it(options_type):
         (IpoptOptions, {"transcription": {"min_steps_per_segment": 0}}, r"transcription\.min_steps_per_segment"),
         (IpoptOptions, {"transcription": {"no_such_option": 1}}, r"transcription\.no_such_option"),
         (IpoptOptions, {"transcription": {"steps_per_coast": 100, "coast_pieces": 8}}, "coast_pieces"),
+        (IpoptOptions, {"transcription": {"coast": "cvodes"}}, r"transcription\.coast"),
+        (IpoptOptions, {"lbfgs_aug_solver": "dense"}, "lbfgs_aug_solver"),
+        (IpoptOptions, {"transcription": {"coast_grid_step": 0.0}}, r"transcription\.coast_grid_step"),
         (BfgsOptions, {"gtol": 0.0}, "gtol"),
         (BfgsOptions, {"maxiter": 0}, "maxiter"),
     ],
@@ -126,6 +152,7 @@ def test_to_dict_from_mapping_round_trip_and_json():
     assert json.loads(json.dumps(d)) == d
     assert IpoptOptions.from_mapping(d) == opts and IpoptOptions.from_mapping(d).to_dict() == d
     assert set(d) == {f.name for f in dataclasses.fields(IpoptOptions)}
+    assert set(d["transcription"]) == {f.name for f in dataclasses.fields(TranscriptionOptions)}
     b = BfgsOptions(gtol=1e-8, maxiter=20)
     assert BfgsOptions.from_mapping(b.to_dict()) == b and b.to_dict() == {"gtol": 1e-8, "maxiter": 20}
 

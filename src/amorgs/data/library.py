@@ -7,7 +7,19 @@ Layout (committed)::
 
 Every file consolidates the generate shards of one α that one export found (a ``shard`` column keeps
 them apart); its manifest entry records the shard indices, row count, converged count, SHA-256, size,
-solver-option hashes, CPU-hours, export time and git commit.  The manifest is the source of truth: a
+solver-option hashes, generation, CPU-hours, export time and git commit.
+
+*Generations* (:data:`GENERATIONS`): when the solver that fills the library changes in substance (issue 22:
+interpolated coasts), a new generation starts beside the old one.  Every file entry names its generation
+(entries without one are generation 1), and the manifest's ``generations`` says what each is, its
+solver-option hashes and its totals.  Every generation stays verified and readable; a row's
+``options_hash`` says exactly which options produced it.  Shard indices are shared across generations (a
+batch index is never reused), so the seeds never collide.
+
+*Compact storage* (files exported since generation 2, manifest ``"guesses": "seeded"``): the 64 ``guess_*``
+columns are not stored — each row's guess is row ``start`` of the problem's uniform draw from
+``default_rng(seed)``, exactly as the generate rule drew it; export checks that bit for bit and reading
+restores the columns, so readers see the same table either way.  The manifest is the source of truth: a
 library read (:func:`read_library_file`) refuses a file that is not listed, whose hash or row count
 differs, or that is not a readable Parquet table — always naming the file.
 
@@ -38,6 +50,7 @@ from amorgs.data.io import write_json, write_parquet
 from amorgs.data.seeds import shard_seed
 from amorgs.data.tables import merge_shards, validate_solutions
 from amorgs.errors import InputError
+from amorgs.problems import get_problem
 
 SOURCE_LIBRARY = "library"
 SOURCE_FRESH = "fresh"
@@ -45,6 +58,8 @@ FORMAT = 2
 MANIFEST = "provenance.json"
 #: Largest distance (in the variable's own units) outside the box that export clips instead of refusing.
 CLIP_TOLERANCE = 1e-6
+#: Manifest value of a file without ``guess_*`` columns (see the module docstring, compact storage).
+GUESSES_SEEDED = "seeded"
 
 
 # ------------------------------------------------------------------------------------------- reading
@@ -122,7 +137,41 @@ def read_library_file(path: str | Path, library_dir: str | Path, problem: str) -
     df = read_table(path)
     if len(df) != entry["rows"]:
         raise InputError(f"{path}: {len(df)} rows, the manifest lists {entry['rows']}")
-    return df
+    return restore_seeded_guesses(df, problem) if entry.get("guesses") == GUESSES_SEEDED else df
+
+
+def seeded_guesses(df: pd.DataFrame, problem: str) -> np.ndarray:
+    """The initial guesses of ``df``'s rows as the generate rule drew them: row ``start`` of
+    ``sample_uniform(α, ·, default_rng(seed))`` (a draw's row k does not depend on how many rows follow it)."""
+    prob = get_problem(problem)
+    out = np.empty((len(df), len(prob.variable_names)))
+    starts = df["start"].to_numpy(dtype=int)
+    for (seed, alpha), idx in df.groupby(["seed", "alpha"], sort=False).indices.items():
+        draw = prob.sample_uniform(float(alpha), int(starts[idx].max()) + 1, np.random.default_rng(int(seed)))
+        out[idx] = draw[starts[idx]]
+    return out
+
+
+def _guess_columns(problem: str) -> list[str]:
+    return [f"guess_{v}" for v in get_problem(problem).variable_names]
+
+
+def drop_seeded_guesses(df: pd.DataFrame, problem: str, where: str) -> pd.DataFrame:
+    """``df`` without its ``guess_*`` columns, after checking bit for bit that :func:`seeded_guesses`
+    reproduces them (``InputError`` naming ``where`` otherwise)."""
+    cols = _guess_columns(problem)
+    if not np.array_equal(df[cols].to_numpy(dtype=float), seeded_guesses(df, problem)):
+        raise InputError(f"{where}: the initial guesses are not the seeded uniform draw of their (seed, start); "
+                         "only the generate rule's shards can be stored compactly")
+    return df.drop(columns=cols)
+
+
+def restore_seeded_guesses(df: pd.DataFrame, problem: str) -> pd.DataFrame:
+    """A compactly stored table with its ``guess_*`` columns back in table order (right after ``start``)."""
+    cols = _guess_columns(problem)
+    guesses = pd.DataFrame(seeded_guesses(df, problem), columns=cols, index=df.index)
+    at = list(df.columns).index("start") + 1
+    return pd.concat([df.iloc[:, :at], guesses, df.iloc[:, at:]], axis=1)
 
 
 def read_library(library_dir: str | Path, problem: str, alpha_label: str, max_rows: int | None = None) -> pd.DataFrame:
@@ -209,6 +258,32 @@ def _per_alpha(entries: list[dict]) -> list[dict]:
     return rows
 
 
+#: The library's generations: what changed in the solver that fills it (see the module docstring).
+GENERATIONS = {
+    1: "RK8 coasts, integrated at every evaluation (every solve before issue 22)",
+    2: "coasts read off the interpolated ballistic flow (issue 22)",
+}
+
+
+def solver_generation(solver) -> int:
+    """The generation a solver's rows belong to: 2 with interpolated coasts, 1 otherwise."""
+    return 2 if getattr(getattr(solver, "transcription", None), "coast", None) == "interpolant" else 1
+
+
+def _generations(files: list[dict]) -> list[dict]:
+    """The manifest's ``generations``: what each is, its solver-option hashes and its totals."""
+    out = []
+    for number, label in GENERATIONS.items():
+        mine = [e for e in files if e.get("generation", 1) == number]
+        if mine:
+            out.append({"generation": number, "what": label,
+                        "options_hashes": sorted({h for e in mine for h in e["options_hashes"]}),
+                        "files": len(mine), "rows": sum(e["rows"] for e in mine),
+                        "converged": sum(e["converged"] for e in mine),
+                        "cpu_hours": sum(e["cpu_hours"] for e in mine)})
+    return out
+
+
 def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, config_file: str | Path) -> dict:
     """Add every finished library-config shard under ``solutions_dir/alpha=*/`` not yet in the library.
 
@@ -218,7 +293,6 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
     Returns a summary: files and rows added, and the library totals.
     """
     from amorgs.config import load_config
-    from amorgs.problems import get_problem
 
     cfg = load_config(config_file)
     section = getattr(cfg.problems, problem)
@@ -246,9 +320,10 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
     for label_dir, parts in sorted(new.items()):
         shards = sorted(k for k, _ in parts)
         df = merge_shards(d for _, d in parts)
-        df = clip_to_bounds(df, prob.variable_names, prob.lower, prob.upper, where=f"{solutions_dir}/{label_dir}")
+        where = f"{solutions_dir}/{label_dir}"
+        df = clip_to_bounds(df, prob.variable_names, prob.lower, prob.upper, where=where)
         rel = f"{label_dir}/shards-{shards[0]:05d}-{shards[-1]:05d}.parquet"
-        write_parquet(df, root / rel)
+        write_parquet(drop_seeded_guesses(df, problem, where), root / rel)
         conv = df[df["converged"]]
         manifest["files"].append({
             "file": rel,
@@ -260,6 +335,8 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
             "sha256": sha256_file(root / rel),
             "bytes": (root / rel).stat().st_size,
             "options_hashes": sorted(df["options_hash"].astype(str).unique().tolist()),
+            "guesses": GUESSES_SEEDED,
+            "generation": solver_generation(section.solver),
             "cpu_hours": float(df["cpu_s"].fillna(0).sum() / 3600),
             "exported": now,
             "git_commit": commit,
@@ -288,6 +365,7 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
             "bytes": total_bytes,
             "bytes_per_row": total_bytes / rows,
         },
+        "generations": _generations(files),
         "per_alpha": _per_alpha(files),
     })
     write_json(manifest, root / MANIFEST)

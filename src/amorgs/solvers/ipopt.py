@@ -125,6 +125,7 @@ def ipopt_settings(options: IpoptOptions) -> dict:
         "mu_strategy": "adaptive",
         "hessian_approximation": options.hessian,
         "limited_memory_max_history": options.lbfgs_memory,
+        "limited_memory_aug_solver": options.lbfgs_aug_solver,
         "linear_solver": options.linear_solver,
         "print_level": 0,
         "sb": "yes",
@@ -168,7 +169,7 @@ class IpoptSolver:
                 monitor = StallMonitor(f"{p.name}_monitor", tr.n_w, tr.n_g, 1, o.stall_window, o.stall_factor,
                                        o.stall_floor)
                 opts["iteration_callback"] = monitor
-            identity = {"transcription": tr_opts.to_dict(), **p.code_identity()}
+            identity = {"transcription": tr_opts.hash_dict(), **p.code_identity()}
             nlpsol, jit_dir = ipopt_nlpsol(p.name, tr.nlp, opts, o.compile, o.compile_flags, o.hessian, identity)
             if jit_dir is not None:
                 self._jit_dirs.append(jit_dir)

@@ -39,8 +39,13 @@ class _Options:
     """``to_dict`` / ``from_mapping`` shared by the options classes below."""
 
     def to_dict(self) -> dict[str, Any]:
-        """The options as a plain JSON-able dict (nested options as nested dicts)."""
+        """The options as a plain JSON-able dict (nested options as nested dicts); ``from_mapping`` inverts it."""
         return dataclasses.asdict(self)  # type: ignore[call-overload]
+
+    def hash_dict(self) -> dict[str, Any]:
+        """What the options hash covers: :meth:`to_dict`, less what a nested class declares not in play."""
+        return {f.name: (v.hash_dict() if isinstance(v := getattr(self, f.name), _Options) else v)
+                for f in dataclasses.fields(self)}  # type: ignore[arg-type]
 
     @classmethod
     def from_mapping(cls: type[_T], mapping: Mapping[str, Any] | None) -> _T:
@@ -61,10 +66,19 @@ class TranscriptionOptions(_Options):
     steps_per_segment: Annotated[int, Field(ge=1, description=(
         "RK8 steps per thrust segment (length τ_s/N) at α = step_scaling_alpha; below it the count grows as "
         "ceil(steps_per_segment · sqrt(step_scaling_alpha / α)) because low thrust means long thrust arcs"))] = 24
+    coast: Annotated[Literal["rk8", "interpolant"], Field(description=(
+        "how the two coast arcs (τ_i from ξ₀, τ_f back from ξ_f) are evaluated: 'rk8' integrates them with "
+        "steps_per_coast fixed steps at every evaluation; 'interpolant' reads them off a cubic B-spline of the "
+        "ballistic flow from the fixed boundary state, sampled every coast_grid_step TU (DOP853, rtol 1e-13) "
+        "once when the NLP is built — the coasts start from fixed states, so the flow is a function of one "
+        "scalar each"))] = "interpolant"
+    coast_grid_step: Annotated[float, Field(gt=0, le=0.1, description=(
+        "'interpolant' coasts: spacing of the B-spline's samples of the ballistic flow (TU)"))] = 0.001
     steps_per_coast: Annotated[int, Field(ge=1, description=(
-        "RK8 steps per coast arc (τ_i or τ_f), split evenly over coast_pieces"))] = 320
+        "'rk8' coasts: RK8 steps per coast arc (τ_i or τ_f), split evenly over coast_pieces"))] = 320
     coast_pieces: Annotated[int, Field(ge=1, description=(
-        "sub-arcs per coast (each a shooting node with multiple_shooting); must divide steps_per_coast"))] = 8
+        "'rk8' coasts: sub-arcs per coast (each a shooting node with multiple_shooting); must divide "
+        "steps_per_coast ('interpolant' coasts are one piece)"))] = 8
     multiple_shooting: Annotated[bool, Field(description=(
         "node states at every piece boundary (the exact Hessian becomes sparse and cheap)"))] = False
     step_scaling_alpha: Annotated[float, Field(ge=0, description=(
@@ -73,6 +87,12 @@ class TranscriptionOptions(_Options):
         "apply the step law above step_scaling_alpha too (fewer steps at high thrust), never below "
         "min_steps_per_segment"))] = False
     min_steps_per_segment: Annotated[int, Field(ge=1, description="floor of the scaled step count")] = 1
+
+    def hash_dict(self) -> dict[str, Any]:
+        """The options that determine the solve: the keys of the coast kind not in use are left out, so
+        'rk8' transcriptions keep the ``options_hash`` they had before 'interpolant' existed."""
+        unused = ("coast", "coast_grid_step") if self.coast == "rk8" else ("steps_per_coast", "coast_pieces")
+        return {k: v for k, v in self.to_dict().items() if k not in unused}
 
     @pydantic.model_validator(mode="after")
     def _pieces_divide_coast(self) -> TranscriptionOptions:
@@ -109,6 +129,11 @@ class IpoptOptions(_Options):
         "IPOPT hessian_approximation: L-BFGS ('limited-memory') or the exact Lagrangian Hessian"))] = "limited-memory"
     lbfgs_memory: Annotated[int, Field(ge=1, description=(
         "L-BFGS history length in update pairs (IPOPT limited_memory_max_history)"))] = 30
+    lbfgs_aug_solver: Annotated[Literal["sherman-morrison", "extended"], Field(description=(
+        "IPOPT limited_memory_aug_solver: how the L-BFGS low-rank term enters the linear system — "
+        "'sherman-morrison' (IPOPT's default: 2 × history extra back-solves per factorisation) or 'extended' "
+        "(the low-rank factors as extra rows of one sparse system; ≈ 3 ms less IPOPT work per iteration "
+        "here, docs/performance.md)"))] = "extended"
     max_iter: Annotated[int, Field(ge=1, description=(
         "IPOPT iteration cap (iterations): the primary, deterministic limit"))] = 1000
     max_wall_s: Annotated[float, Field(gt=0, description=(
@@ -148,9 +173,17 @@ class IpoptOptions(_Options):
     transcription: Annotated[TranscriptionOptions, Field(description=(
         "integration and layout of the transcription"))] = dataclasses.field(default_factory=TranscriptionOptions)
 
+    def hash_dict(self) -> dict[str, Any]:
+        """:meth:`to_dict` as hashed: ``lbfgs_aug_solver`` at IPOPT's own default is left out, so options from
+        before the field existed keep their ``options_hash``."""
+        d = super().hash_dict()
+        if d["lbfgs_aug_solver"] == "sherman-morrison":
+            del d["lbfgs_aug_solver"]
+        return d
+
     def digest(self) -> str:
-        """Short stable hash of :meth:`to_dict` (stored in every row as ``options_hash``)."""
-        return _sha12(self.to_dict())
+        """Short stable hash of :meth:`hash_dict` (stored in every row as ``options_hash``)."""
+        return _sha12(self.hash_dict())
 
 
 @dataclass(frozen=True, config=_CONFIG)

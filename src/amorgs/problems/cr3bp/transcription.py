@@ -14,10 +14,15 @@ unbounded (wrapped to [0, 2π) on the way out), followed — with ``multiple_sho
 start of every sub-arc ("piece") after the first on each side, so that each piece is integrated
 independently: the constraint Jacobian and the Lagrangian Hessian become block-sparse and an exact Hessian
 is cheap.  Every piece is integrated with a fixed number of 8th-order Runge–Kutta steps (the DOP853
-tableau), time-scaled so that the step length follows the piece length: coasts are cut into
-``coast_pieces`` pieces of ``steps_per_coast / coast_pieces`` steps, thrust segments take
-``steps_per_segment`` steps each.  Those choices are :class:`~amorgs.solvers.options.TranscriptionOptions`
-(part of the solver's options, since they change the solve but not the stored vector).
+tableau), time-scaled so that the step length follows the piece length: thrust segments take
+``steps_per_segment`` steps each.  The two coasts start from fixed states (ξ₀, and ξ_f with a mass that a
+coast does not change), so each is a function of one scalar (τ_i, τ_f ∈ [0, 15] TU): with ``coast =
+'interpolant'`` they are read off a cubic B-spline of the ballistic flow sampled once (DOP853, rtol 1e-13,
+every ``coast_grid_step`` TU; :func:`~amorgs.problems.cr3bp.propagation.ballistic_flow`) — one piece each, no
+integration at all per evaluation; with ``coast = 'rk8'`` they are cut into ``coast_pieces`` pieces of
+``steps_per_coast / coast_pieces`` RK8 steps.  Those choices are
+:class:`~amorgs.solvers.options.TranscriptionOptions` (part of the solver's options, since they change the
+solve but not the stored vector).
 """
 
 from __future__ import annotations
@@ -29,10 +34,13 @@ import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop853
 
 from amorgs.problems.cr3bp import constants as K
+from amorgs.problems.cr3bp.propagation import ballistic_flow
 from amorgs.solvers.options import TranscriptionOptions
 
 N_SEGMENTS = 20
 CORE_SIZE = 4 + 3 * N_SEGMENTS
+#: Upper bound of the coast durations τ_i and τ_f (TU, spec §5); the coast interpolants span [0, TAU_COAST_MAX].
+TAU_COAST_MAX = 15.0
 
 
 def variable_names(n_segments: int = N_SEGMENTS) -> tuple[str, ...]:
@@ -86,6 +94,22 @@ def _piece(step: ca.Function, n_steps: int, name: str) -> ca.Function:
     return ca.Function(name, [s, u, p, dt], [traj[:, -1]])
 
 
+def _coast_interpolant(state6, direction: int, step: float, name: str) -> ca.Function:
+    """Ballistic coast from a fixed 7-state as a function of its duration: (s, u4, p, dt) → s.
+
+    The position and velocity come from a cubic B-spline of the flow of ``state6[:6]`` (sampled every
+    ``step`` TU over [0, TAU_COAST_MAX]); ``dt`` is the signed duration (``direction`` · τ); the fuel mass is
+    ``s[6]`` unchanged.  ``s`` must be the fixed start state the flow was sampled from.
+    """
+    grid, states = ballistic_flow(state6, direction, TAU_COAST_MAX, step)
+    flow = ca.interpolant(f"{name}_flow", "bspline", [grid], states.ravel(order="F"))
+    s = ca.MX.sym("s", 7)
+    u = ca.MX.sym("u", 4)
+    p = ca.MX.sym("p", 2)
+    dt = ca.MX.sym("dt")
+    return ca.Function(name, [s, u, p, dt], [ca.vertcat(flow(direction * dt), s[6])])
+
+
 def thrust_parameters(alpha: float | ca.MX) -> list:
     """(a_max, ṁ_max) for the internal units: α N → t·DU/TU² and t/TU."""
     return [alpha * K.thrust_nd(1.0) / 1000.0, alpha * K.mass_flow_kg_per_tu(1.0) / 1000.0]
@@ -110,9 +134,15 @@ class ForwardBackwardTranscription:
         self.m0_t = float(self.xi0[6])
         rhs = _rhs_sx()
         step = _rk8_step(rhs)
-        self.coast_piece = _piece(step, opt.steps_per_coast // opt.coast_pieces, "coast_piece")
+        if opt.coast == "interpolant":
+            self.coast_pieces = {"coast_f": _coast_interpolant(self.xi0, 1, opt.coast_grid_step, "coast_f"),
+                                 "coast_b": _coast_interpolant(self.xif, -1, opt.coast_grid_step, "coast_b")}
+            self.kc = 1
+        else:
+            piece = _piece(step, opt.steps_per_coast // opt.coast_pieces, "coast_piece")
+            self.coast_pieces = {"coast_f": piece, "coast_b": piece}
+            self.kc = opt.coast_pieces
         self.thrust_piece = _piece(step, opt.steps_per_segment, "thrust_piece")
-        self.kc = opt.coast_pieces
         half = self.n // 2
         # Pieces per chain: kc coast pieces then N/2 thrust segments.
         self.pieces_per_chain = self.kc + half
@@ -134,14 +164,14 @@ class ForwardBackwardTranscription:
         tau_s, tau_i, tau_f = core[0], core[1], core[2]
         zero = ca.MX.zeros(4)
         half = self.n // 2
-        fwd = [("coast", zero, tau_i / self.kc)] * self.kc
+        fwd = [("coast_f", zero, tau_i / self.kc)] * self.kc
         fwd += [("thrust", us[k], tau_s / self.n) for k in range(half)]
-        bwd = [("coast", zero, -tau_f / self.kc)] * self.kc
+        bwd = [("coast_b", zero, -tau_f / self.kc)] * self.kc
         bwd += [("thrust", us[k], -tau_s / self.n) for k in range(self.n - 1, half - 1, -1)]
         return fwd, bwd
 
     def _apply(self, kind, s, u, p, dt):
-        return (self.coast_piece if kind == "coast" else self.thrust_piece)(s, u, p, dt)
+        return (self.thrust_piece if kind == "thrust" else self.coast_pieces[kind])(s, u, p, dt)
 
     def _build(self) -> None:
         w = ca.MX.sym("w", self.n_w)
@@ -196,7 +226,7 @@ class ForwardBackwardTranscription:
         lo = np.full(self.n_w, -np.inf)
         hi = np.full(self.n_w, np.inf)
         lo[:4] = [0.0, 0.0, 0.0, 0.0]
-        hi[:4] = [40.0, 15.0, 15.0, self.m0_t]
+        hi[:4] = [40.0, TAU_COAST_MAX, TAU_COAST_MAX, self.m0_t]
         for k in range(self.n):
             lo[5 + 3 * k], hi[5 + 3 * k] = -math.pi / 2, math.pi / 2
             lo[6 + 3 * k], hi[6 + 3 * k] = 0.0, 1.0
