@@ -38,6 +38,10 @@ def cmd_library_export(args: argparse.Namespace) -> None:
     from amorgs.data.library import export_library
 
     summary = export_library(args.solutions_dir, args.library_dir, args.problem, args.config)
+    if not summary["files_added"]:
+        print(f"{args.library_dir}/{args.problem}: nothing new: the {summary['held_identical']} shard(s) under "
+              f"{args.solutions_dir} are already in the library, identical")
+        return
     print(
         f"{args.library_dir}/{args.problem}: {summary['files_added']} new file(s), {summary['rows_added']} new rows; "
         f"library now {summary['shards']} shards in {summary['files']} files, {summary['rows']} solves "
@@ -168,11 +172,17 @@ def cmd_config_schema(args: argparse.Namespace) -> None:
 
 def add_tools(sub: argparse._SubParsersAction) -> None:
     """Add every tool's subcommand to ``sub``."""
-    p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library")
+    p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library",
+                       description="Add the finished shards of the library's own config to the library. The library "
+                                   "belongs to one config (seed, starts per shard, solver options, recorded in its "
+                                   "manifest): shards of any other config, a shard index it holds with other solves, "
+                                   "or a damaged table stop the export, naming the file; another config needs "
+                                   "another --library-dir.")
     p.add_argument("--problem", default="cr3bp", choices=PROBLEMS, help="problem whose shards are exported")
     p.add_argument("--solutions-dir", default="results/cr3bp/solutions", help="where the generate rule wrote the shards")
     p.add_argument("--library-dir", default="data/library", help="library root (data/library)")
-    p.add_argument("--config", default="config/library.yaml", help="the config that generated them (provenance)")
+    p.add_argument("--config", default="config/library.yaml",
+                   help="the config that generated them; it must be the library's (same seed, starts, solver options)")
     p.set_defaults(func=cmd_library_export)
 
     p = sub.add_parser("models-export", help="ship a workflow run's CR3BP checkpoints in the repository (for design)")

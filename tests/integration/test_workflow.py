@@ -79,6 +79,28 @@ def test_unknown_config_key_fails_at_start(tmp_path):
     assert not (wd / "results").exists()
 
 
+@pytest.mark.parametrize("damage", ["truncated", "unlisted"])
+def test_a_damaged_or_unlisted_library_file_stops_the_workflow_before_any_job(tmp_path, damage):
+    """The library is checked against its manifest when the workflow starts (it used to be caught inside
+    `merge`, after minutes of other jobs; an unlisted file was ignored)."""
+    from amorgs.data.library import library_files
+
+    wd = workdir(tmp_path, smoke_config())  # the smoke config reads the library
+    target = library_files(wd / "data" / "library", "cr3bp", "0.500")[0]
+    if damage == "truncated":
+        target.write_bytes(target.read_bytes()[:-100])
+    else:
+        target = target.with_name("shards-99999-99999.parquet")
+        shutil.copyfile(library_files(wd / "data" / "library", "cr3bp", "0.100")[0], target)
+    res = snakemake(wd, "--configfile", "config/test.yaml")
+    out = res.stdout + res.stderr
+    assert res.returncode != 0
+    line = next(x for x in out.splitlines() if x.startswith("amorgs: "))
+    assert f"amorgs: {target.relative_to(wd)}: " in line and ("not listed in" if damage == "unlisted" else "differs from") in line
+    assert "Traceback" not in out
+    assert not (wd / "results").exists()
+
+
 def test_config_override_is_validated(tmp_path):
     wd = workdir(tmp_path)
     res = snakemake(wd, "-n", "--configfile", "config/smoke.yaml", "--config", "seed=-1")
