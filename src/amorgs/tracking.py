@@ -286,11 +286,6 @@ class JobRun:
         self._model_id: str | None = None
         self._dataset: tuple[str, str] | None = None  # (name, digest) of the training data, linked to metrics
 
-    @property
-    def active(self) -> bool:
-        """Whether this job is still being mirrored to MLflow."""
-        return self._client is not None
-
     def _call(self, method: str, *args, **kwargs) -> None:
         if self._client is None:
             return

@@ -13,7 +13,8 @@ crashes or hangs past ``hard_timeout_s`` is killed and replaced; its guess becom
 Every worker leads its own process group, and the pool kills the whole group: a worker killed while gcc
 builds its solver (:mod:`amorgs.solvers.codegen`) takes the compiler with it instead of leaving it running
 under init.  On Linux a worker also dies with the process that started it (``PR_SET_PDEATHSIG``), so a
-pool killed outright (``kill -9``, Snakemake killing a job's process group) leaves no worker behind.
+pool killed outright (``kill -9``, Snakemake killing a job's process group) leaves no worker behind.  Workers
+start with SIGINT ignored: a Ctrl-C is the caller's (it stops the pool, which kills them).
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from multiprocessing.connection import wait
 
 import numpy as np
@@ -96,6 +98,22 @@ def kill_worker(proc) -> None:
     proc.join(5)
 
 
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT while a worker starts, so that it starts with SIGINT ignored (an ignored signal stays
+    ignored across exec, and Python keeps it so): until :func:`detach_worker` takes it out of the terminal's
+    process group, a Ctrl-C would otherwise reach the worker too and print its own traceback."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals are not ours to change
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _worker(conn, problem_name: str, options: OptionsLike) -> None:
     """Worker loop: build the solver, announce readiness, then answer (index, x0, alpha) tasks."""
     detach_worker()
@@ -129,7 +147,8 @@ class _Slot:
     def __init__(self, ctx, problem: str, options: OptionsLike):
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_worker, args=(child, problem, options), daemon=True)
-        self.proc.start()
+        with _sigint_ignored():  # Ctrl-C is the caller's to handle: a starting worker never sees it
+            self.proc.start()
         child.close()
         self.ready = False
         self.task: int | None = None
