@@ -174,7 +174,8 @@ def tag_source(df: pd.DataFrame, source: str) -> pd.DataFrame:
 # ------------------------------------------------------------------------------------------- export
 
 
-def _git_commit() -> str:
+def git_commit() -> str:
+    """The checkout's commit (``git rev-parse HEAD``), or ``unknown`` outside a git checkout."""
     try:
         return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
@@ -350,7 +351,7 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
         return {"files_added": 0, "rows_added": 0, "held_identical": identical, **manifest["totals"]}
 
     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-    commit = _git_commit()
+    commit = git_commit()
     added_rows = 0
     for label_dir, parts in sorted(new.items()):
         shards = sorted(k for k, _ in parts)

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from amorgs.data.io import atomic_path, write_json
 from amorgs.data.library import MANIFEST as LIBRARY_MANIFEST
-from amorgs.data.library import _git_commit, read_manifest, sha256_file
+from amorgs.data.library import git_commit, read_manifest, sha256_file
 from amorgs.errors import InputError
 from amorgs.models.names import CR3BP_MODELS
 
@@ -56,7 +56,7 @@ def export_models(models_dir: str | Path, dest: str | Path, config_file: str | P
         "library_manifest_sha256": sha256_file(library_path) if library is not None else None,
         "library_rows": library["totals"]["rows"] if library is not None else 0,
         "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "git_commit": _git_commit(),
+        "git_commit": git_commit(),
     }
     write_json(manifest, dst / MANIFEST)
     return manifest

@@ -35,8 +35,9 @@ from multiprocessing.connection import wait
 import numpy as np
 import pandas as pd
 
-from amorgs.problems import SolveRecord, get_problem
+from amorgs.problems import get_problem
 from amorgs.solvers.options import Options, as_options
+from amorgs.solvers.record import SolveRecord
 
 BUILD_TIMEOUT_S = 900.0
 #: A worker's hard timeout per solve (s) when the solver has no wall cap of its own (``max_wall_s``).
