@@ -35,9 +35,10 @@ EXAMPLES = {
 
 
 def cmd_library_export(args: argparse.Namespace) -> None:
+    from amorgs.config import load_config
     from amorgs.data.library import export_library
 
-    summary = export_library(args.solutions_dir, args.library_dir, args.problem, args.config)
+    summary = export_library(args.solutions_dir, args.library_dir, args.problem, load_config(args.config), args.config)
     if not summary["files_added"]:
         print(f"{args.library_dir}/{args.problem}: nothing new: the {summary['held_identical']} shard(s) under "
               f"{args.solutions_dir} are already in the library, identical")
@@ -51,16 +52,17 @@ def cmd_library_export(args: argparse.Namespace) -> None:
 
 
 def cmd_models_export(args: argparse.Namespace) -> None:
+    from amorgs.config import load_config
     from amorgs.models.shipped import export_models
 
-    manifest = export_models(args.models_dir, args.dest, args.config, args.library_dir)
+    manifest = export_models(args.models_dir, args.dest, load_config(args.config), args.config, args.library_dir)
     size = sum(f["bytes"] for f in manifest["files"])
     print(f"{args.dest}: {len(manifest['files'])} checkpoints ({size / 1e6:.2f} MB), trained on a library of "
           f"{manifest['library_rows']} solves; manifest {args.dest}/provenance.json")
 
 
 def cmd_library_grow(args: argparse.Namespace) -> None:
-    from amorgs.data.library_grow import grow
+    from amorgs.library_grow import grow
 
     grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice,
          alphas=args.alphas, until_converged=args.until_converged)

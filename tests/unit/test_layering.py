@@ -45,16 +45,13 @@ LAYERS = (
     ("amorgs.tracking", "amorgs.lifeline", "amorgs.trajectory_export"),
     ("amorgs.figures",),
     ("amorgs.steps", "amorgs.design", "amorgs.checks", "amorgs.reference"),
-    ("amorgs.tools", "amorgs.cli", "amorgs.__main__", "amorgs"),
+    ("amorgs.tools", "amorgs.library_grow", "amorgs.cli", "amorgs.__main__", "amorgs"),
 )
 #: Upward imports still to be cut (issue 24 §3), each (importer, imported package): the check fails on any
 #: other upward import, and on an entry here that no longer occurs (remove it when its link is cut).
 KNOWN_UPWARD = (
     ("amorgs.solvers.multistart", "amorgs.problems"),  # the pool builds a family by name in each worker
     ("amorgs.models.samplers", "amorgs.ablation.arms"),  # the arm names and needs: item 1's one table of arms
-    ("amorgs.models.shipped", "amorgs.config"),  # models-export loads the config it records
-    ("amorgs.data.library", "amorgs.config"),  # library-export loads the library config
-    ("amorgs.data.library_grow", "amorgs.config"),  # library-grow (a tool driving Snakemake) reads its config
 )
 
 #: Only the top layer may import the command line and the workflow steps: the command line itself, the steps,

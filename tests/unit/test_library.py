@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from amorgs.config import load_config
 from amorgs.data.library import (
     CLIP_TOLERANCE,
     export_library,
@@ -25,12 +26,13 @@ from amorgs.data.library import (
     read_library_file,
     read_manifest,
 )
-from amorgs.data.library_grow import batch_targets, next_batch
+from amorgs.library_grow import batch_targets, next_batch
 from amorgs.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 LIBRARY = ROOT / "data" / "library"
 CONFIG = ROOT / "config" / "library.yaml"
+CFG = load_config(CONFIG)
 
 
 def real_shards(tmp_path: Path, label: str = "0.500", n: int = 2) -> Path:
@@ -73,11 +75,11 @@ def test_committed_library_matches_its_manifest():
 def test_export_consolidates_shards_and_skips_held_ones(tmp_path):
     solutions = real_shards(tmp_path, n=2)
     lib = tmp_path / "library"
-    summary = export_library(solutions, lib, "cr3bp", CONFIG)
+    summary = export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     assert summary["files_added"] == 1 and summary["shards"] == 2
     files = library_files(lib, "cr3bp", "0.500")
     assert [f.name for f in files] == ["shards-00008-00009.parquet"]
-    again = export_library(solutions, lib, "cr3bp", CONFIG)
+    again = export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     assert again["files_added"] == 0 and again["rows"] == summary["rows"]
     entry = read_manifest(lib, "cr3bp")["files"][0]
     assert entry["shards"] == [8, 9] and len(entry["sha256"]) == 64 and entry["options_hashes"]
@@ -90,7 +92,7 @@ def test_export_refuses_a_shard_of_another_config(tmp_path):
     df["seed"] = 12345  # what a smoke or default run would have made
     df.to_parquet(shard, index=False)
     with pytest.raises(InputError, match=r"shard-8\.parquet: seed \[12345\] is not the library config's seed"):
-        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
     assert not (tmp_path / "library").exists()
 
 
@@ -100,12 +102,12 @@ def test_export_refuses_a_short_shard_and_a_truncated_one(tmp_path):
     original = pd.read_parquet(first)
     original.head(3).to_parquet(first, index=False)
     with pytest.raises(InputError, match=r"shard-8\.parquet: 3 rows, the library config makes 12 per shard"):
-        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
     original.to_parquet(first, index=False)
     data = second.read_bytes()
     second.write_bytes(data[: len(data) // 2])
     with pytest.raises(InputError, match=r"shard-9\.parquet: not a readable Parquet table"):
-        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
 
 
 def test_export_clips_tiny_bound_violations_and_refuses_large_ones(tmp_path):
@@ -115,13 +117,13 @@ def test_export_clips_tiny_bound_violations_and_refuses_large_ones(tmp_path):
     row = int(np.flatnonzero(df["converged"])[0])
     df.loc[row, "tau_i"] = -9e-9
     df.to_parquet(shard, index=False)
-    export_library(solutions, tmp_path / "lib1", "cr3bp", CONFIG)
+    export_library(solutions, tmp_path / "lib1", "cr3bp", CFG, CONFIG)
     stored = read_library(tmp_path / "lib1", "cr3bp", "0.500")
     assert stored.loc[row, "tau_i"] == 0.0
     df.loc[row, "m_f"] = 999.0  # the fuel bound is the initial fuel, ≈ 452 kg
     df.to_parquet(shard, index=False)
     with pytest.raises(InputError, match=r"column 'm_f' lies .* outside its bounds"):
-        export_library(solutions, tmp_path / "lib2", "cr3bp", CONFIG)
+        export_library(solutions, tmp_path / "lib2", "cr3bp", CFG, CONFIG)
     assert CLIP_TOLERANCE < 1e-3
 
 
@@ -203,7 +205,7 @@ def test_focused_batches_grow_only_the_chosen_alpha(tmp_path):
 
 
 def test_grow_until_converged_picks_the_short_alphas_and_stops_when_none_is_left(tmp_path):
-    from amorgs.data.library_grow import grow, short_alphas
+    from amorgs.library_grow import grow, short_alphas
 
     per_alpha = {e["alpha"]: e["converged"] for e in read_manifest(LIBRARY, "cr3bp")["per_alpha"]}
     target = sorted(per_alpha.values())[len(per_alpha) // 2]  # about half the α lie below it
@@ -249,12 +251,11 @@ def other_config(tmp_path: Path, change: str) -> Path:
 def test_export_takes_only_the_library_configs_shards_whatever_config_it_is_given(tmp_path, change):
     """`library-export --config config/mine.yaml` used to let that config's shards in and rewrite the
     manifest's seed and config for every solve held: the library belongs to one config identity."""
-    from amorgs.config import load_config
     from amorgs.data.library import library_identity
     from amorgs.data.seeds import shard_seed
 
     lib = tmp_path / "library"
-    export_library(real_shards(tmp_path, n=1), lib, "cr3bp", CONFIG)
+    export_library(real_shards(tmp_path, n=1), lib, "cr3bp", CFG, CONFIG)
     manifest_before = (lib / "cr3bp" / "provenance.json").read_bytes()
     mine = other_config(tmp_path, change)
     identity = library_identity(load_config(mine), "cr3bp")
@@ -265,14 +266,14 @@ def test_export_takes_only_the_library_configs_shards_whatever_config_it_is_give
     df = df.assign(shard=7, seed=shard_seed(identity["seed"], "cr3bp", 0.5, 7), options_hash=identity["options_hash"])
     df.to_parquet(theirs, index=False)
     with pytest.raises(InputError, match=rf"mine\.yaml: not the config of the library .*{change if change == 'seed' else 'options_hash'}"):
-        export_library(theirs.parent.parent, lib, "cr3bp", mine)
+        export_library(theirs.parent.parent, lib, "cr3bp", load_config(mine), mine)
     assert (lib / "cr3bp" / "provenance.json").read_bytes() == manifest_before
     res = amorgs("library-export", "--solutions-dir", str(theirs.parent.parent), "--library-dir", str(lib),
                  "--config", str(mine))
     assert res.returncode == 1 and "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert str(mine) in res.stderr and "--library-dir" in res.stderr
     # a different library is its own directory and manifest
-    summary = export_library(theirs.parent.parent, tmp_path / "mine-library", "cr3bp", mine)
+    summary = export_library(theirs.parent.parent, tmp_path / "mine-library", "cr3bp", load_config(mine), mine)
     assert summary["rows_added"] == 12
     assert read_manifest(tmp_path / "mine-library", "cr3bp")["identity"] == identity
 
@@ -282,14 +283,14 @@ def test_export_refuses_a_shard_solved_with_other_solver_options(tmp_path):
     shard = next(solutions.glob("alpha=*/shard-*.parquet"))
     pd.read_parquet(shard).assign(options_hash="0123456789ab").to_parquet(shard, index=False)
     with pytest.raises(InputError, match=r"shard-8\.parquet: solver-option hash 0123456789ab, the library config's"):
-        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
 
 
 def test_export_refuses_a_held_shard_with_different_solves_naming_it(tmp_path):
     """A shard index the library holds, with other content, used to be skipped silently with exit 0."""
     solutions = real_shards(tmp_path, n=2)
     lib = tmp_path / "library"
-    export_library(solutions, lib, "cr3bp", CONFIG)
+    export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     manifest_before = (lib / "cr3bp" / "provenance.json").read_bytes()
     shard = sorted(solutions.glob("alpha=*/shard-*.parquet"))[1]
     df = pd.read_parquet(shard)
@@ -297,7 +298,7 @@ def test_export_refuses_a_held_shard_with_different_solves_naming_it(tmp_path):
     df.loc[row, "m_f"] -= 0.5  # one solve differs
     df.to_parquet(shard, index=False)
     with pytest.raises(InputError, match=r"shard-9\.parquet: the library already holds shard 9 .* different solves"):
-        export_library(solutions, lib, "cr3bp", CONFIG)
+        export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     res = amorgs("library-export", "--solutions-dir", str(solutions), "--library-dir", str(lib), "--config", str(CONFIG))
     assert res.returncode == 1 and str(shard) in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert (lib / "cr3bp" / "provenance.json").read_bytes() == manifest_before
@@ -306,7 +307,7 @@ def test_export_refuses_a_held_shard_with_different_solves_naming_it(tmp_path):
 def test_export_of_identical_held_shards_is_a_no_op_with_one_line(tmp_path):
     solutions = real_shards(tmp_path, n=2)
     lib = tmp_path / "library"
-    export_library(solutions, lib, "cr3bp", CONFIG)
+    export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     before = {p: p.read_bytes() for p in (lib / "cr3bp").rglob("*") if p.is_file()}
     for shard in solutions.glob("alpha=*/shard-*.parquet"):  # rerun timings differ: still the same solves
         pd.read_parquet(shard).assign(wall_s=1.0, cpu_s=1.0).to_parquet(shard, index=False)
@@ -322,7 +323,7 @@ def test_verify_library_names_an_unlisted_a_truncated_and_a_missing_file(tmp_pat
 
     assert verify_library(LIBRARY, "cr3bp")["totals"]["rows"] > 0
     lib = tmp_path / "library"
-    export_library(real_shards(tmp_path, n=2), lib, "cr3bp", CONFIG)
+    export_library(real_shards(tmp_path, n=2), lib, "cr3bp", CFG, CONFIG)
     target = library_files(lib, "cr3bp", "0.500")[0]
     stray = lib / "cr3bp" / "alpha=0.500" / "notes.parquet"
     stray.write_bytes(b"x")
@@ -345,7 +346,7 @@ def test_grow_runs_a_real_batch_and_exports_it(tmp_path, monkeypatch):
     call starts the next batch and never regenerates or duplicates a held shard."""
     import yaml
 
-    from amorgs.data.library_grow import grow
+    from amorgs.library_grow import grow
 
     cfg = yaml.safe_load(CONFIG.read_text())
     cfg["mlflow"]["enabled"] = False

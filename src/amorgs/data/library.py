@@ -289,10 +289,11 @@ def _same_solves(shard: pd.DataFrame, held: pd.DataFrame) -> bool:
     return True
 
 
-def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, config_file: str | Path) -> dict:
+def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, cfg, config_file: str | Path) -> dict:
     """Add every finished library-config shard under ``solutions_dir/alpha=*/`` not yet in the library.
 
-    The library is one config's: ``config_file`` must have the identity (:func:`library_identity`) that the
+    ``cfg`` is the typed config read from ``config_file`` (:func:`amorgs.config.load_config`; the file's text is
+    recorded).  The library is one config's: ``config_file`` must have the identity (:func:`library_identity`) that the
     manifest records, whatever file it is (another config's shards need another ``library_dir``).  Every shard
     is checked (:func:`check_library_shard`; a new one must carry the config's solver-option hash, a held one
     may predate it); a shard whose index the library holds must hold the same solves as the library (timings
@@ -301,10 +302,8 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
     :func:`clip_to_bounds`), and the manifest gains its entry.  Nothing new: the library is left untouched.
     Returns a summary: files and rows added, held shards found identical, and the library totals.
     """
-    from amorgs.config import load_config
     from amorgs.problems import get_problem
 
-    cfg = load_config(config_file)
     section = getattr(cfg.problems, problem)
     alpha_values = section.alpha_values()
     identity = library_identity(cfg, problem)

@@ -29,14 +29,12 @@ MANIFEST = "provenance.json"
 CHECKPOINT_FILES = tuple(f"{name}.pt" for name in CR3BP_MODELS)
 
 
-def export_models(models_dir: str | Path, dest: str | Path, config_file: str | Path,
+def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: str | Path,
                   library_dir: str | Path = "data/library", problem: str = "cr3bp") -> dict:
     """Copy the checkpoints of ``models_dir`` (a workflow run's ``results/cr3bp/models``) to ``dest`` and write
-    the manifest; returns it."""
-    from amorgs.config import load_config
-
+    the manifest; returns it.  ``cfg``: the typed config of the run that trained them, read from
+    ``config_file`` (:func:`amorgs.config.load_config`)."""
     src, dst = Path(models_dir), Path(dest)
-    cfg = load_config(config_file)
     files = []
     for name in CHECKPOINT_FILES:
         if not (src / name).is_file():
