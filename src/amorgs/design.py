@@ -157,12 +157,13 @@ def _cpu_seconds() -> float:
 
 def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_kg: float) -> pd.DataFrame:
     """The library's high-quality rows (converged, m_f ≥ β) at the training α; :class:`InputError` naming the
-    manifest if the library is missing or holds none."""
+    manifest if the library is missing or holds none, or the file if one differs from the manifest or is not
+    listed in it (:func:`~amorgs.data.library.verify_library`)."""
     from amorgs.data.filter import high_quality
-    from amorgs.data.library import MANIFEST, read_library, read_manifest
+    from amorgs.data.library import MANIFEST, read_library, verify_library
 
     manifest = Path(library_dir) / PROBLEM / MANIFEST
-    if read_manifest(library_dir, PROBLEM) is None:
+    if verify_library(library_dir, PROBLEM) is None:
         raise InputError(f"{manifest}: solution library not found (--library-dir {library_dir})")
     frames = [read_library(library_dir, PROBLEM, alpha_label(a)) for a in train_alphas]
     frames = [f for f in frames if len(f)]
@@ -320,7 +321,7 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
             break
         size = min(request.round_size, request.max_starts - starts)
         guesses = sampler.sample(request.alpha, size, rng)
-        records, run_info = solve_guesses(PROBLEM, request.alpha, guesses, request.workers, solver_options,
+        records, run_info = solve_guesses(problem, request.alpha, guesses, request.workers, solver_options,
                                           progress=False)
         table = records_table(PROBLEM, request.alpha, request.seed, guesses, records, problem.variable_names,
                               run_info["options_hash"])

@@ -228,3 +228,17 @@ def test_ctrl_c_ends_design_with_one_line_and_no_process_left(tmp_path):
     assert proc.returncode == 130
     assert [line for line in err.splitlines() if line.strip()] == ["amorgs design: interrupted"], err
     assert _session(proc.pid) == []
+
+
+def test_an_unlisted_library_file_stops_design_naming_it(tmp_path):
+    import shutil
+
+    from amorgs.design import library_high_quality
+    from amorgs.errors import InputError
+
+    lib = tmp_path / "library"
+    shutil.copytree(REPO / "data" / "library", lib)
+    stray = lib / "cr3bp" / "alpha=0.400" / "extra.parquet"
+    stray.write_bytes(b"not listed")
+    with pytest.raises(InputError, match=rf"{stray}: not listed in"):
+        library_high_quality(lib, (0.4,), 415.0)

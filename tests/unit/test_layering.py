@@ -50,7 +50,6 @@ LAYERS = (
 #: Upward imports still to be cut (issue 24 §3), each (importer, imported package): the check fails on any
 #: other upward import, and on an entry here that no longer occurs (remove it when its link is cut).
 KNOWN_UPWARD = (
-    ("amorgs.solvers.multistart", "amorgs.problems"),  # the pool builds a family by name in each worker
     ("amorgs.models.samplers", "amorgs.ablation.arms"),  # the arm names and needs: item 1's one table of arms
 )
 
