@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from amorgs.problems import get_problem
 from amorgs.solvers.multistart import run_multistart
 from amorgs.solvers.options import IpoptOptions, TranscriptionOptions
 
@@ -304,7 +305,7 @@ def main() -> None:
         rows = []
         for workers in (1, 2):
             t0 = time.perf_counter()
-            df = run_multistart("cr3bp", 1.0, args.seed, args.starts, workers=workers, progress=False)
+            df = run_multistart(get_problem("cr3bp"), 1.0, args.seed, args.starts, workers=workers, progress=False)
             rows.append({"workers": workers, "starts": args.starts, "wall (s)": time.perf_counter() - t0,
                          "solve CPU (s)": df.cpu_s.sum()})
         rows[1]["speed-up"] = rows[0]["wall (s)"] / rows[1]["wall (s)"]
@@ -325,7 +326,7 @@ def main() -> None:
         label, opts, alpha = cell
         if args.max_wall_s is not None:
             opts = dataclasses.replace(opts, max_wall_s=args.max_wall_s)
-        df = run_multistart("cr3bp", alpha, args.seed, args.starts, workers=1, options=opts, progress=False)
+        df = run_multistart(get_problem("cr3bp"), alpha, args.seed, args.starts, workers=1, options=opts, progress=False)
         df["variant"] = label
         print(json.dumps({"variant": label, **summarize(df)}, default=str), flush=True)
         return df

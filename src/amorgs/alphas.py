@@ -12,6 +12,7 @@ Metric keys (MLflow and the metrics JSON files) are built by :func:`metric_key` 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 
 import numpy as np
@@ -62,3 +63,15 @@ def metric_key(name: str, alpha: float | str | None = None, *qualifiers: object)
         parts.append(f"alpha_{alpha_label(alpha)}")
     parts += [str(q) for q in qualifiers]
     return "/".join(parts)
+
+
+def check_alpha(alpha: float, alpha_range: tuple[float, float], problem: str) -> float:
+    """Return ``alpha`` as float or raise a ``ValueError`` that names the field and the range."""
+    lo, hi = alpha_range
+    try:
+        a = float(alpha)
+    except (TypeError, ValueError):
+        raise ValueError(f"{problem}: alpha must be a number, got {alpha!r}") from None
+    if not math.isfinite(a) or a < lo - 1e-12 or a > hi + 1e-12:
+        raise ValueError(f"{problem}: alpha={alpha!r} is outside its range [{lo}, {hi}]")
+    return a

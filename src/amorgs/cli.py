@@ -2,7 +2,8 @@
 
 ``amorgs step --job <JSON>`` runs one workflow job (each Snakemake rule calls it; the steps, their
 settings and outputs are :mod:`amorgs.steps`); the other subcommands are the tools of :mod:`amorgs.tools`.
-A user error (bad config, missing or corrupt input) prints one line naming the file or key, no traceback.
+A user error (bad config, missing or corrupt input) prints one line naming the file or key, no traceback;
+so does Ctrl-C (exit status 130).
 """
 
 from __future__ import annotations
@@ -52,3 +53,6 @@ def main(argv: list[str] | None = None) -> None:
         args.func(args)
     except (ConfigError, InputError) as exc:
         sys.exit(f"amorgs {args.command}: {exc}")
+    except KeyboardInterrupt:  # Ctrl-C: one line, the usual exit status of a command stopped by SIGINT
+        print(f"amorgs {args.command}: interrupted", file=sys.stderr)
+        sys.exit(130)

@@ -76,7 +76,8 @@ class DesignRequest:
     config: str = DEFAULT_CONFIG
 
     def check(self) -> None:
-        """One :class:`ConfigError` naming the option for every out-of-range value."""
+        """One :class:`ConfigError` naming the option for every out-of-range value (β against the problem's
+        bound on m_f: :func:`check_beta`, once the problem is loaded)."""
         from amorgs.ablation.arms import SAMPLER_NAMES
         from amorgs.problems import ALPHA_RANGES
 
@@ -89,6 +90,8 @@ class DesignRequest:
             raise ConfigError(f"--sampler {self.sampler!r}: choose one of {', '.join(SAMPLER_NAMES)}")
         if not (math.isfinite(self.beta_kg) and self.beta_kg >= 0):
             raise ConfigError(f"--beta {self.beta_kg}: β must be a final mass ≥ 0 kg")
+        if self.seed < 0:
+            raise ConfigError(f"--seed {self.seed}: the seed must be ≥ 0")
         if not (math.isfinite(self.eta) and self.eta > 0):
             raise ConfigError(f"--eta {self.eta}: η must be > 0")
         if self.workers < 1:
@@ -154,12 +157,13 @@ def _cpu_seconds() -> float:
 
 def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_kg: float) -> pd.DataFrame:
     """The library's high-quality rows (converged, m_f ≥ β) at the training α; :class:`InputError` naming the
-    manifest if the library is missing or holds none."""
+    manifest if the library is missing or holds none, or the file if one differs from the manifest or is not
+    listed in it (:func:`~amorgs.data.library.verify_library`)."""
     from amorgs.data.filter import high_quality
-    from amorgs.data.library import MANIFEST, read_library, read_manifest
+    from amorgs.data.library import MANIFEST, read_library, verify_library
 
     manifest = Path(library_dir) / PROBLEM / MANIFEST
-    if read_manifest(library_dir, PROBLEM) is None:
+    if verify_library(library_dir, PROBLEM) is None:
         raise InputError(f"{manifest}: solution library not found (--library-dir {library_dir})")
     frames = [read_library(library_dir, PROBLEM, alpha_label(a)) for a in train_alphas]
     frames = [f for f in frames if len(f)]
@@ -225,6 +229,37 @@ def select_diverse(hq: pd.DataFrame, eta: float, n: int) -> tuple[int, pd.DataFr
     return int(idx.size), chosen.reset_index(drop=True).assign(rank=np.arange(1, len(chosen) + 1))
 
 
+def check_beta(beta_kg: float, problem) -> None:
+    """:class:`ConfigError` if no solution of ``problem`` can reach m_f ≥ β: β above the upper bound of m_f
+    (all the fuel left, 451.9 kg), which would spend the whole budget on solves that can never count."""
+    bound = float(problem.upper[list(problem.variable_names).index("m_f")])
+    if beta_kg > bound:
+        raise ConfigError(f"--beta {beta_kg:g}: above the largest final mass a transfer can keep, m_f ≤ "
+                          f"{bound:.1f} kg (no fuel spent); no solution could count")
+
+
+def check_output_dir(output_dir: str | Path) -> None:
+    """:class:`InputError` naming the folder if the design's files could not be written there (a file in the
+    way, no write permission, a read-only file system) — checked before the first solve, writing nothing
+    that stays: a folder that exists must take a file; else its nearest existing parent must."""
+    import tempfile
+
+    out = Path(output_dir)
+    for path in (out, out / "trajectories"):
+        if path.exists() and not path.is_dir():
+            raise InputError(f"{path}: not a folder (--output {output_dir})")
+    existing = out
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InputError(f"{out}: cannot be created, {existing} is not a folder (--output {output_dir})")
+    try:
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as exc:
+        raise InputError(f"{out}: output folder not writable ({existing}: {exc.strerror or exc})") from None
+
+
 @dataclass
 class Prepared:
     """Everything :func:`design` needs before the first solve: the config, the solver options, the problem and
@@ -248,6 +283,7 @@ def prepare(request: DesignRequest) -> Prepared:
         raise InputError(f"{request.config}: config file not found (--config)")
     cfg = load_config(request.config)
     problem = get_problem(PROBLEM)
+    check_beta(request.beta_kg, problem)
     sampler, info = make_sampler(request, cfg, problem)
     solver_options = cfg.problems.cr3bp.solver
     info["solver_options"] = solver_options.to_dict()
@@ -285,7 +321,7 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
             break
         size = min(request.round_size, request.max_starts - starts)
         guesses = sampler.sample(request.alpha, size, rng)
-        records, run_info = solve_guesses(PROBLEM, request.alpha, guesses, request.workers, solver_options,
+        records, run_info = solve_guesses(problem, request.alpha, guesses, request.workers, solver_options,
                                           progress=False)
         table = records_table(PROBLEM, request.alpha, request.seed, guesses, records, problem.variable_names,
                               run_info["options_hash"])
@@ -496,7 +532,8 @@ class ProgressLine:
 
 def run_design(request: DesignRequest, output_dir: str | Path | None = None, track: bool = True,
                store_dir: str | Path = DESIGN_STORE_DIR, progress: bool = True) -> tuple[DesignResult, dict]:
-    """``amorgs design``: prepare (errors before any solve), search, write the outputs, mirror it to MLflow.
+    """``amorgs design``: check every option (the output folder included) and prepare — every user error
+    before the first solve —, search, write the outputs, mirror it to MLflow.
 
     MLflow (unless ``track`` is false or the config's ``mlflow.enabled`` is false): one run per call
     (:func:`amorgs.tracking.standalone_run`) in experiment :data:`DESIGN_EXPERIMENT` of the store
@@ -506,8 +543,10 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
     """
     from contextlib import nullcontext
 
-    prepared = prepare(request)
+    request.check()
     out = Path(output_dir) if output_dir is not None else default_output_dir(request.alpha)
+    check_output_dir(out)
+    prepared = prepare(request)
     params = {**asdict(request), "output": str(out), **{k: v for k, v in prepared.info.items()}}
     track = track and bool(prepared.cfg.mlflow.enabled)
     from amorgs import tracking

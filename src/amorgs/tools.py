@@ -35,9 +35,14 @@ EXAMPLES = {
 
 
 def cmd_library_export(args: argparse.Namespace) -> None:
+    from amorgs.config import load_config
     from amorgs.data.library import export_library
 
-    summary = export_library(args.solutions_dir, args.library_dir, args.problem, args.config)
+    summary = export_library(args.solutions_dir, args.library_dir, args.problem, load_config(args.config), args.config)
+    if not summary["files_added"]:
+        print(f"{args.library_dir}/{args.problem}: nothing new: the {summary['held_identical']} shard(s) under "
+              f"{args.solutions_dir} are already in the library, identical")
+        return
     print(
         f"{args.library_dir}/{args.problem}: {summary['files_added']} new file(s), {summary['rows_added']} new rows; "
         f"library now {summary['shards']} shards in {summary['files']} files, {summary['rows']} solves "
@@ -47,16 +52,17 @@ def cmd_library_export(args: argparse.Namespace) -> None:
 
 
 def cmd_models_export(args: argparse.Namespace) -> None:
+    from amorgs.config import load_config
     from amorgs.models.shipped import export_models
 
-    manifest = export_models(args.models_dir, args.dest, args.config, args.library_dir)
+    manifest = export_models(args.models_dir, args.dest, load_config(args.config), args.config, args.library_dir)
     size = sum(f["bytes"] for f in manifest["files"])
     print(f"{args.dest}: {len(manifest['files'])} checkpoints ({size / 1e6:.2f} MB), trained on a library of "
           f"{manifest['library_rows']} solves; manifest {args.dest}/provenance.json")
 
 
 def cmd_library_grow(args: argparse.Namespace) -> None:
-    from amorgs.data.library_grow import grow
+    from amorgs.library_grow import grow
 
     grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice,
          alphas=args.alphas, until_converged=args.until_converged)
@@ -168,11 +174,17 @@ def cmd_config_schema(args: argparse.Namespace) -> None:
 
 def add_tools(sub: argparse._SubParsersAction) -> None:
     """Add every tool's subcommand to ``sub``."""
-    p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library")
+    p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library",
+                       description="Add the finished shards of the library's own config to the library. The library "
+                                   "belongs to one config (seed, starts per shard, solver options, recorded in its "
+                                   "manifest): shards of any other config, a shard index it holds with other solves, "
+                                   "or a damaged table stop the export, naming the file; another config needs "
+                                   "another --library-dir.")
     p.add_argument("--problem", default="cr3bp", choices=PROBLEMS, help="problem whose shards are exported")
     p.add_argument("--solutions-dir", default="results/cr3bp/solutions", help="where the generate rule wrote the shards")
     p.add_argument("--library-dir", default="data/library", help="library root (data/library)")
-    p.add_argument("--config", default="config/library.yaml", help="the config that generated them (provenance)")
+    p.add_argument("--config", default="config/library.yaml",
+                   help="the config that generated them; it must be the library's (same seed, starts, solver options)")
     p.set_defaults(func=cmd_library_export)
 
     p = sub.add_parser("models-export", help="ship a workflow run's CR3BP checkpoints in the repository (for design)")

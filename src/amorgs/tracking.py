@@ -20,7 +20,9 @@ trained checkpoints as MLflow logged models whose metrics are linked to them (:m
 
 Killed runs: a job killed by SIGTERM or SIGINT ends its child run KILLED; a workflow stopped by the user
 (Ctrl-C, or SIGTERM to Snakemake) ends its parent run KILLED (:func:`error_status`), any other failure FAILED;
-and a run left RUNNING by ``kill -9`` is closed KILLED by the next invocation.
+a job whose Snakemake is killed outright ends too, its run KILLED (:mod:`amorgs.lifeline`); and a run still
+left RUNNING (``kill -9`` of the job itself) is closed KILLED by the next invocation, so a rerun adds exactly
+one FINISHED run per job.
 
 Concurrency: SQLite returns "database is locked" without waiting when a read transaction must be promoted to
 a write while another process writes, which MLflow's own busy timeout cannot prevent.  Every write to the
@@ -285,11 +287,6 @@ class JobRun:
         self._metrics: list[Metric] = []
         self._model_id: str | None = None
         self._dataset: tuple[str, str] | None = None  # (name, digest) of the training data, linked to metrics
-
-    @property
-    def active(self) -> bool:
-        """Whether this job is still being mirrored to MLflow."""
-        return self._client is not None
 
     def _call(self, method: str, *args, **kwargs) -> None:
         if self._client is None:

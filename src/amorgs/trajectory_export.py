@@ -220,19 +220,6 @@ def write_oem(history: pd.DataFrame, path: str | Path, object_name: str, object_
     return path
 
 
-def read_oem_rotating(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read an OEM written by :func:`write_oem`: (t in TU after the epoch, rotating barycentric states (n, 6)
-    in DU, VU)."""
-    from astropy.time import Time
-    from oem import OrbitEphemerisMessage
-
-    message = OrbitEphemerisMessage.open(str(path))
-    states = message.states
-    t = frames.tu_after_epoch(Time([s.epoch for s in states]))
-    emi_km = np.array([np.r_[s.position, s.velocity] for s in states], float)
-    return t, frames.inertial_to_rotating(t, frames.from_km(emi_km))
-
-
 def plot_trajectories(histories: Sequence[pd.DataFrame], alpha: float, labels: Sequence[str] | None = None):
     """3-D plot of the trajectories: rotating frame (barycentric, 10³ km) and Earth-centred inertial frame."""
     from matplotlib import pyplot as plt

@@ -62,14 +62,14 @@ def test_iteration_cap_equals_a_real_capped_resolve():
     hq = _library_high_quality()
     guess = NearestAlphaSampler(problem, hq, (0.8, 0.9)).sample(0.85, 1, np.random.default_rng(0))
     opts = {"max_iter": 1000, "max_wall_s": 120.0}
-    (full,), _ = solve_guesses("cr3bp", 0.85, guess, 1, opts, progress=False)
+    (full,), _ = solve_guesses(problem, 0.85, guess, 1, opts, progress=False)
     assert full.converged, full.status
     k = int(full.iterations)
     assert k > 4
-    (same,), _ = solve_guesses("cr3bp", 0.85, guess, 1, {**opts, "max_iter": k}, progress=False)
+    (same,), _ = solve_guesses(problem, 0.85, guess, 1, {**opts, "max_iter": k}, progress=False)
     assert same.converged and int(same.iterations) == k
     np.testing.assert_allclose(same.x, full.x, rtol=1e-9, atol=1e-9)
-    (cut,), _ = solve_guesses("cr3bp", 0.85, guess, 1, {**opts, "max_iter": k // 2}, progress=False)
+    (cut,), _ = solve_guesses(problem, 0.85, guess, 1, {**opts, "max_iter": k // 2}, progress=False)
     assert not cut.converged and int(cut.iterations) == k // 2
     import pandas as pd
 

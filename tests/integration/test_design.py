@@ -157,6 +157,9 @@ def test_same_seed_same_solutions_with_one_worker(designed):
         (["--alpha", "0.42", "-n", "3", "--max-cpu-s", "-5"], "--max-cpu-s"),
         (["--alpha", "0.42", "-n", "3", "--library-dir", "no/such/library"], "no/such/library/cr3bp/provenance.json"),
         (["--alpha", "0.42", "-n", "3", "--sampler", "amorgs", "--models-dir", "no/such/models"], "no/such/models/"),
+        (["--alpha", "0.42", "-n", "3", "--beta", "1e6", "--max-starts", "1"], "--beta 1e+06: above the largest final mass"),
+        (["--alpha", "0.42", "-n", "3", "--beta", "452", "--max-starts", "1"], "m_f ≤ 451.9 kg"),
+        (["--alpha", "0.42", "-n", "3", "--seed", "-1", "--max-starts", "1"], "--seed -1"),
     ],
 )
 def test_bad_input_is_one_line_without_traceback(args, names, tmp_path):
@@ -167,3 +170,75 @@ def test_bad_input_is_one_line_without_traceback(args, names, tmp_path):
     assert len(lines) == 1, proc.stderr
     assert lines[0].startswith("amorgs design:") and names in lines[0], lines[0]
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("where", ["below a file", "a file"])
+def test_an_unwritable_output_folder_is_one_line_before_any_solve(where, tmp_path):
+    """`--output <unwritable>` used to solve for minutes, then end in a 36-line traceback."""
+    blocker = tmp_path / "blocker"
+    blocker.write_text("a file, not a folder")
+    out = blocker / "design" if where == "below a file" else blocker
+    proc = amorgs("design", "--alpha", "0.42", "-n", "1", "--max-starts", "1", "--output", str(out), "--no-mlflow",
+                  timeout=120)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith(f"amorgs design: {out}"), proc.stderr
+    assert blocker.read_text() == "a file, not a folder"
+
+
+def _session(sid: int) -> list[int]:
+    """Pids of the live processes of session ``sid`` (zombies aside)."""
+    pids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[3]) == sid and fields[0] != "Z":
+            pids.append(int(stat.parent.name))
+    return pids
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
+def test_ctrl_c_ends_design_with_one_line_and_no_process_left(tmp_path):
+    """Ctrl-C used to print a 26-line KeyboardInterrupt traceback."""
+    import os
+    import signal
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "amorgs", "design", "--alpha", str(ALPHA), "-n", "50", "--workers", "2", "--quiet",
+         "--output", str(tmp_path / "out"), "--no-mlflow"],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as in a terminal
+    )
+    try:
+        deadline = time.monotonic() + 300
+        while len(_session(proc.pid)) < 3:  # the command and its two solver workers: solving has begun
+            assert proc.poll() is None, proc.stderr.read()
+            assert time.monotonic() < deadline, "no solver worker started"
+            time.sleep(0.2)
+        time.sleep(2)
+        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the foreground process group
+        _, err = proc.communicate(timeout=60)
+    finally:
+        for pid in _session(proc.pid):
+            os.kill(pid, signal.SIGKILL)
+    assert proc.returncode == 130
+    assert [line for line in err.splitlines() if line.strip()] == ["amorgs design: interrupted"], err
+    assert _session(proc.pid) == []
+
+
+def test_an_unlisted_library_file_stops_design_naming_it(tmp_path):
+    import shutil
+
+    from amorgs.design import library_high_quality
+    from amorgs.errors import InputError
+
+    lib = tmp_path / "library"
+    shutil.copytree(REPO / "data" / "library", lib)
+    stray = lib / "cr3bp" / "alpha=0.400" / "extra.parquet"
+    stray.write_bytes(b"not listed")
+    with pytest.raises(InputError, match=rf"{stray}: not listed in"):
+        library_high_quality(lib, (0.4,), 415.0)

@@ -72,9 +72,10 @@ def test_analyze_on_committed_real_solutions():
 
 @pytest.mark.slow
 def test_analyze_on_fresh_multistart():
+    from amorgs.problems import get_problem
     from amorgs.solvers.multistart import run_multistart
 
-    df = run_multistart("cr3bp", 1.0, 7, 6, workers=1, progress=False)
+    df = run_multistart(get_problem("cr3bp"), 1.0, 7, 6, workers=1, progress=False)
     hq = high_quality(df, min_final_mass_kg=BETA_KG)
     result = analyze(df, hq, BETA_KG, StructureParams(n_trajectories=1))
     _check(result, df)

@@ -79,6 +79,28 @@ def test_unknown_config_key_fails_at_start(tmp_path):
     assert not (wd / "results").exists()
 
 
+@pytest.mark.parametrize("damage", ["truncated", "unlisted"])
+def test_a_damaged_or_unlisted_library_file_stops_the_workflow_before_any_job(tmp_path, damage):
+    """The library is checked against its manifest when the workflow starts (it used to be caught inside
+    `merge`, after minutes of other jobs; an unlisted file was ignored)."""
+    from amorgs.data.library import library_files
+
+    wd = workdir(tmp_path, smoke_config())  # the smoke config reads the library
+    target = library_files(wd / "data" / "library", "cr3bp", "0.500")[0]
+    if damage == "truncated":
+        target.write_bytes(target.read_bytes()[:-100])
+    else:
+        target = target.with_name("shards-99999-99999.parquet")
+        shutil.copyfile(library_files(wd / "data" / "library", "cr3bp", "0.100")[0], target)
+    res = snakemake(wd, "--configfile", "config/test.yaml")
+    out = res.stdout + res.stderr
+    assert res.returncode != 0
+    line = next(x for x in out.splitlines() if x.startswith("amorgs: "))
+    assert f"amorgs: {target.relative_to(wd)}: " in line and ("not listed in" if damage == "unlisted" else "differs from") in line
+    assert "Traceback" not in out
+    assert not (wd / "results").exists()
+
+
 def test_config_override_is_validated(tmp_path):
     wd = workdir(tmp_path)
     res = snakemake(wd, "-n", "--configfile", "config/smoke.yaml", "--config", "seed=-1")
@@ -337,6 +359,65 @@ def test_killed_run_resumes_without_losing_or_duplicating_rows(tmp_path):
     exp = client.get_experiment_by_name(cfg["mlflow"]["experiment"])
     statuses = sorted(r.info.status for r in client.search_runs([exp.experiment_id], "tags.kind = 'workflow'"))
     assert statuses == ["FINISHED", "KILLED"]
+
+
+def _session(sid: int) -> list[int]:
+    """Pids of the live processes of session ``sid`` (zombies aside)."""
+    pids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[3]) == sid and fields[0] != "Z":
+            pids.append(int(stat.parent.name))
+    return pids
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
+def test_kill_9_of_snakemake_leaves_no_job_or_solver_and_the_rerun_one_finished_run_per_job(tmp_path):
+    """`kill -9` of Snakemake alone (not its process group) used to leave the job and its solver worker
+    running; they finished on their own and the rerun added a second FINISHED run of the same job."""
+    cfg = _interrupt_config()
+    cfg["problems"]["dejong"]["generate"].update(shards=1, starts_per_shard=50000)  # minutes of work
+    wd = workdir(tmp_path, cfg)
+    run = ["results/dejong/high_quality.parquet", "--configfile", "config/test.yaml"]
+    proc = subprocess.Popen([SNAKEMAKE, *run], cwd=wd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True, env=ENV)
+    try:
+        deadline = time.monotonic() + 300
+        invocation = wd / "results" / "mlflow" / "invocation.json"
+        while not invocation.exists() or not any(
+            r.info.status == "RUNNING" for r in _runs(wd, cfg["mlflow"]["experiment"])["job"]
+        ) or len(_session(proc.pid)) < 4:  # snakemake, the job's shell, the job, its solver worker
+            assert proc.poll() is None, "the workflow ended before its job started"
+            assert time.monotonic() < deadline, "no job run appeared"
+            time.sleep(0.5)
+        os.kill(proc.pid, signal.SIGKILL)  # Snakemake alone: its jobs are re-parented, not signalled
+        proc.wait()
+        deadline = time.monotonic() + 60
+        while _session(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.5)
+        assert _session(proc.pid) == [], "a job or solver process outlived the killed workflow"
+    finally:
+        for pid in _session(proc.pid):
+            os.kill(pid, signal.SIGKILL)
+    runs = _runs(wd, cfg["mlflow"]["experiment"])
+    assert [r.info.status for r in runs["job"]] == ["KILLED"]  # the job closed its own run as it ended
+
+    cfg["problems"]["dejong"]["generate"].update(starts_per_shard=30)  # the rerun: a shard that ends soon
+    (wd / "config" / "test.yaml").write_text(yaml.safe_dump(cfg))
+    assert snakemake(wd, "--unlock", "--configfile", "config/test.yaml").returncode == 0
+    res = snakemake(wd, *run)
+    assert res.returncode == 0, res.stderr[-3000:]
+    runs = _runs(wd, cfg["mlflow"]["experiment"])
+    assert sorted(r.info.status for r in runs["workflow"]) == ["FINISHED", "KILLED"]
+    by_job: dict[tuple, list[str]] = {}
+    for r in runs["job"]:
+        by_job.setdefault((r.data.tags["rule"], r.data.tags["wildcards"]), []).append(r.info.status)
+    assert {job: statuses.count("FINISHED") for job, statuses in by_job.items()} == dict.fromkeys(by_job, 1)
+    assert sorted(s for statuses in by_job.values() for s in statuses if s != "FINISHED") == ["KILLED"]
 
 
 def test_boundary_conditions_check(tmp_path):

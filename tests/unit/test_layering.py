@@ -1,5 +1,6 @@
-"""Module layering of the package, checked statically: ``analysis``/``ablation`` return data, ``figures`` draws
-it, a step calls both, and no module imports upward.
+"""Module layering of the package, checked statically: the packages in a declared order, bottom to top, and no
+module imports one above its own (:data:`LAYERS`); besides, ``analysis``/``ablation`` return data, ``figures``
+draws it, and a step calls both (:data:`RULES`).
 
 Every module under ``src/amorgs`` is parsed with :mod:`ast`; every ``import``/``from … import`` statement counts,
 also those inside functions and under ``if TYPE_CHECKING:`` (a layer should not need a type from above it
@@ -27,6 +28,31 @@ RULES = (
       for layer in ("amorgs.analysis", "amorgs.data", "amorgs.ablation", "amorgs.models", "amorgs.problems",
                     "amorgs.solvers")),
 )
+#: The packages bottom to top: a module may import its own layer and those below it, never one above.  The
+#: solvers sit below the problems (a problem family builds its local solver from the solvers' options and
+#: protocol; the solvers need nothing of a family); the config gathers every registry (problems, presets,
+#: arms) into the typed experiment, so it sits above them; the steps, ``amorgs design`` and the checks use
+#: everything; the command line is on top.
+LAYERS = (
+    ("amorgs.alphas", "amorgs.errors", "amorgs.layout"),
+    ("amorgs.solvers",),
+    ("amorgs.problems",),
+    ("amorgs.data",),
+    ("amorgs.analysis",),
+    ("amorgs.models",),
+    ("amorgs.ablation",),
+    ("amorgs.config",),
+    ("amorgs.tracking", "amorgs.lifeline", "amorgs.trajectory_export"),
+    ("amorgs.figures",),
+    ("amorgs.steps", "amorgs.design", "amorgs.checks", "amorgs.reference"),
+    ("amorgs.tools", "amorgs.library_grow", "amorgs.cli", "amorgs.__main__", "amorgs"),
+)
+#: Upward imports still to be cut (issue 24 §3), each (importer, imported package): the check fails on any
+#: other upward import, and on an entry here that no longer occurs (remove it when its link is cut).
+KNOWN_UPWARD = (
+    ("amorgs.models.samplers", "amorgs.ablation.arms"),  # the arm names and needs: item 1's one table of arms
+)
+
 #: Only the top layer may import the command line and the workflow steps: the command line itself, the steps,
 #: ``python -m amorgs``, ``amorgs check-outputs`` (:mod:`amorgs.checks`), which verifies what the steps declare,
 #: and ``amorgs reference-export`` (:mod:`amorgs.reference`), which copies what the steps made.
@@ -77,6 +103,31 @@ def violations(modules: dict[str, set[str]]) -> list[str]:
     return found
 
 
+def layer_of(module: str) -> int:
+    """The index in :data:`LAYERS` of the most specific prefix that holds ``module``."""
+    best = max(((len(p), i) for i, layer in enumerate(LAYERS) for p in layer if _within(module, p)), default=None)
+    if best is None:
+        raise KeyError(f"{module} is in no layer of LAYERS: add its package there")
+    return best[1]
+
+
+def upward_imports(modules: dict[str, set[str]]) -> set[tuple[str, str]]:
+    """(importer, imported) for every import of a package module from a layer above the importer's; the
+    imported name is cut to its module in :data:`LAYERS` terms (``amorgs.config.load_config`` → ``amorgs.config``)."""
+    found = set()
+    for module, names in modules.items():
+        own = layer_of(module)
+        for name in names:
+            if not _within(name, "amorgs") or name == "amorgs" or layer_of(name) <= own:
+                continue
+            parts = name.split(".")
+            target = next(".".join(parts[:k]) for k in range(2, len(parts) + 1)
+                          if layer_of(".".join(parts[:k])) == layer_of(name))
+            known = next((p for m, p in KNOWN_UPWARD if m == module and _within(name, p)), None)
+            found.add((module, known or target))
+    return found
+
+
 def package_imports() -> dict[str, set[str]]:
     return {module_name(p): imported_modules(p.read_text(), module_name(p), p.name == "__init__.py")
             for p in sorted(PACKAGE.rglob("*.py"))}
@@ -86,6 +137,27 @@ def test_no_module_imports_upward():
     modules = package_imports()
     assert "amorgs.figures.ablation" in modules and "amorgs.analysis.structure_report" in modules
     assert violations(modules) == []
+
+
+def test_every_module_imports_only_its_own_layer_and_those_below():
+    """The declared order of :data:`LAYERS`; the links of :data:`KNOWN_UPWARD` are the only exceptions left."""
+    modules = package_imports()
+    for module in modules:
+        layer_of(module)  # every module has a layer
+    found = upward_imports(modules)
+    assert sorted(found - set(KNOWN_UPWARD)) == [], "upward imports (importer, imported)"
+    assert sorted(set(KNOWN_UPWARD) - found) == [], "links cut: remove them from KNOWN_UPWARD"
+
+
+@pytest.mark.parametrize("module, source, imported", [
+    ("amorgs.solvers.ipopt", "from amorgs.problems.base import SolveRecord\n", "amorgs.problems"),
+    ("amorgs.data.io", "def f():\n    from amorgs.models.shipped import verify_models\n", "amorgs.models"),
+    ("amorgs.alphas", "from .config import load_config\n", "amorgs.config"),
+    ("amorgs.figures.dejong", "import amorgs.steps.dejong\n", "amorgs.steps"),
+])
+def test_the_order_check_catches_an_upward_import(module, source, imported):
+    found = upward_imports({module: imported_modules(source, module)})
+    assert [(m, n) for m, n in found if _within(n, imported)] != [], found
 
 
 @pytest.mark.parametrize("module, source, expected", [

@@ -10,31 +10,53 @@ import json
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from amorgs.config import load_config
 from amorgs.data.library import (
     CLIP_TOLERANCE,
     export_library,
     library_files,
+    manifest_identity,
     read_library,
     read_library_file,
     read_manifest,
+    seeded_guesses,
 )
-from amorgs.data.library_grow import batch_targets, next_batch
+from amorgs.library_grow import batch_targets, next_batch
 from amorgs.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 LIBRARY = ROOT / "data" / "library"
-CONFIG = ROOT / "config" / "library.yaml"
+LIBRARY_CONFIG = ROOT / "config" / "library.yaml"
+
+
+def _generation_1_config() -> Path:
+    """The library config with the solver of library generation 1 (RK8 coasts, Sherman–Morrison L-BFGS), so
+    that the committed generation-1 shards are this config's shards."""
+    import yaml
+
+    cfg = yaml.safe_load(LIBRARY_CONFIG.read_text())
+    cfg["problems"]["cr3bp"]["solver"].update(lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"})
+    path = Path(tempfile.mkdtemp(prefix="amorgs-test-library-")) / "library.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+CONFIG = _generation_1_config()
+CFG = load_config(CONFIG)
 
 
 def real_shards(tmp_path: Path, label: str = "0.500", n: int = 2) -> Path:
-    """The first ``n`` library shards of one α, written as generate-rule shard tables under tmp/solutions."""
+    """The first ``n`` library shards of one α solved with the library config's current solver options
+    (shards 8, 9, …; batch 0 predates them), written as generate-rule shard tables under tmp/solutions."""
     df = read_library(LIBRARY, "cr3bp", label)
+    df = df[df["options_hash"] == manifest_identity(read_manifest(LIBRARY, "cr3bp"))["options_hash"]]
     out = tmp_path / "solutions"
     for k in sorted(df["shard"].unique())[:n]:
         path = out / f"alpha={label}" / f"shard-{k}.parquet"
@@ -70,14 +92,14 @@ def test_committed_library_matches_its_manifest():
 def test_export_consolidates_shards_and_skips_held_ones(tmp_path):
     solutions = real_shards(tmp_path, n=2)
     lib = tmp_path / "library"
-    summary = export_library(solutions, lib, "cr3bp", CONFIG)
+    summary = export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     assert summary["files_added"] == 1 and summary["shards"] == 2
     files = library_files(lib, "cr3bp", "0.500")
-    assert [f.name for f in files] == [f"shards-{k:05d}-{k2:05d}.parquet" for k, k2 in [(0, 1)]]
-    again = export_library(solutions, lib, "cr3bp", CONFIG)
+    assert [f.name for f in files] == ["shards-00008-00009.parquet"]
+    again = export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     assert again["files_added"] == 0 and again["rows"] == summary["rows"]
     entry = read_manifest(lib, "cr3bp")["files"][0]
-    assert entry["shards"] == [0, 1] and len(entry["sha256"]) == 64 and entry["options_hashes"]
+    assert entry["shards"] == [8, 9] and len(entry["sha256"]) == 64 and entry["options_hashes"]
 
 
 def test_export_refuses_a_shard_of_another_config(tmp_path):
@@ -86,8 +108,8 @@ def test_export_refuses_a_shard_of_another_config(tmp_path):
     df = pd.read_parquet(shard)
     df["seed"] = 12345  # what a smoke or default run would have made
     df.to_parquet(shard, index=False)
-    with pytest.raises(InputError, match=r"shard-0\.parquet: seed \[12345\] is not the library config's seed"):
-        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)
+    with pytest.raises(InputError, match=r"shard-8\.parquet: seed \[12345\] is not the library config's seed"):
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
     assert not (tmp_path / "library").exists()
 
 
@@ -96,13 +118,13 @@ def test_export_refuses_a_short_shard_and_a_truncated_one(tmp_path):
     first, second = sorted(solutions.glob("alpha=*/shard-*.parquet"))
     original = pd.read_parquet(first)
     original.head(3).to_parquet(first, index=False)
-    with pytest.raises(InputError, match=r"shard-0\.parquet: 3 rows, the library config makes 12 per shard"):
-        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)
+    with pytest.raises(InputError, match=r"shard-8\.parquet: 3 rows, the library config makes 12 per shard"):
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
     original.to_parquet(first, index=False)
     data = second.read_bytes()
     second.write_bytes(data[: len(data) // 2])
-    with pytest.raises(InputError, match=r"shard-1\.parquet: not a readable Parquet table"):
-        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)
+    with pytest.raises(InputError, match=r"shard-9\.parquet: not a readable Parquet table"):
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
 
 
 def test_export_clips_tiny_bound_violations_and_refuses_large_ones(tmp_path):
@@ -112,13 +134,13 @@ def test_export_clips_tiny_bound_violations_and_refuses_large_ones(tmp_path):
     row = int(np.flatnonzero(df["converged"])[0])
     df.loc[row, "tau_i"] = -9e-9
     df.to_parquet(shard, index=False)
-    export_library(solutions, tmp_path / "lib1", "cr3bp", CONFIG)
+    export_library(solutions, tmp_path / "lib1", "cr3bp", CFG, CONFIG)
     stored = read_library(tmp_path / "lib1", "cr3bp", "0.500")
     assert stored.loc[row, "tau_i"] == 0.0
     df.loc[row, "m_f"] = 999.0  # the fuel bound is the initial fuel, ≈ 452 kg
     df.to_parquet(shard, index=False)
     with pytest.raises(InputError, match=r"column 'm_f' lies .* outside its bounds"):
-        export_library(solutions, tmp_path / "lib2", "cr3bp", CONFIG)
+        export_library(solutions, tmp_path / "lib2", "cr3bp", CFG, CONFIG)
     assert CLIP_TOLERANCE < 1e-3
 
 
@@ -200,7 +222,7 @@ def test_focused_batches_grow_only_the_chosen_alpha(tmp_path):
 
 
 def test_grow_until_converged_picks_the_short_alphas_and_stops_when_none_is_left(tmp_path):
-    from amorgs.data.library_grow import grow, short_alphas
+    from amorgs.library_grow import grow, short_alphas
 
     per_alpha = {e["alpha"]: e["converged"] for e in read_manifest(LIBRARY, "cr3bp")["per_alpha"]}
     target = sorted(per_alpha.values())[len(per_alpha) // 2]  # about half the α lie below it
@@ -228,13 +250,122 @@ def test_library_export_cli_prints_one_line_for_a_foreign_shard(tmp_path):
     assert str(shard) in res.stderr and len(res.stderr.strip().splitlines()) == 1
 
 
+def other_config(tmp_path: Path, change: str) -> Path:
+    """A copy of the library config with one change: its ``seed`` or its solver's ``max_iter``."""
+    import yaml
+
+    cfg = yaml.safe_load(CONFIG.read_text())
+    if change == "seed":
+        cfg["seed"] = 5
+    else:
+        cfg["problems"]["cr3bp"]["solver"]["max_iter"] = 50
+    path = tmp_path / "mine.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+@pytest.mark.parametrize("change", ["seed", "max_iter"])
+def test_export_takes_only_the_library_configs_shards_whatever_config_it_is_given(tmp_path, change):
+    """`library-export --config config/mine.yaml` used to let that config's shards in and rewrite the
+    manifest's seed and config for every solve held: the library belongs to one config identity."""
+    from amorgs.data.library import library_identity
+    from amorgs.data.seeds import shard_seed
+
+    lib = tmp_path / "library"
+    export_library(real_shards(tmp_path, n=1), lib, "cr3bp", CFG, CONFIG)
+    manifest_before = (lib / "cr3bp" / "provenance.json").read_bytes()
+    mine = other_config(tmp_path, change)
+    identity = library_identity(load_config(mine), "cr3bp")
+    # a shard exactly as config/mine.yaml makes it, at an index the library does not hold
+    theirs = tmp_path / "theirs" / "alpha=0.500" / "shard-7.parquet"
+    theirs.parent.mkdir(parents=True)
+    df = read_library(LIBRARY, "cr3bp", "0.500").query("shard == 8").drop(columns="source", errors="ignore")
+    df = df.assign(shard=7, seed=shard_seed(identity["seed"], "cr3bp", 0.5, 7), options_hash=identity["options_hash"])
+    guess_columns = [c for c in df.columns if c.startswith("guess_")]
+    df[guess_columns] = seeded_guesses(df, "cr3bp")  # the guesses that seed draws, as the generate rule would
+    df.to_parquet(theirs, index=False)
+    with pytest.raises(InputError, match=rf"mine\.yaml: not the config of the library .*{change if change == 'seed' else 'options_hash'}"):
+        export_library(theirs.parent.parent, lib, "cr3bp", load_config(mine), mine)
+    assert (lib / "cr3bp" / "provenance.json").read_bytes() == manifest_before
+    res = amorgs("library-export", "--solutions-dir", str(theirs.parent.parent), "--library-dir", str(lib),
+                 "--config", str(mine))
+    assert res.returncode == 1 and "Traceback" not in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert str(mine) in res.stderr and "--library-dir" in res.stderr
+    # a different library is its own directory and manifest
+    summary = export_library(theirs.parent.parent, tmp_path / "mine-library", "cr3bp", load_config(mine), mine)
+    assert summary["rows_added"] == 12
+    assert read_manifest(tmp_path / "mine-library", "cr3bp")["identity"] == identity
+
+
+def test_export_refuses_a_shard_solved_with_other_solver_options(tmp_path):
+    solutions = real_shards(tmp_path, n=1)
+    shard = next(solutions.glob("alpha=*/shard-*.parquet"))
+    pd.read_parquet(shard).assign(options_hash="0123456789ab").to_parquet(shard, index=False)
+    with pytest.raises(InputError, match=r"shard-8\.parquet: solver-option hash 0123456789ab, the library config's"):
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
+
+
+def test_export_refuses_a_held_shard_with_different_solves_naming_it(tmp_path):
+    """A shard index the library holds, with other content, used to be skipped silently with exit 0."""
+    solutions = real_shards(tmp_path, n=2)
+    lib = tmp_path / "library"
+    export_library(solutions, lib, "cr3bp", CFG, CONFIG)
+    manifest_before = (lib / "cr3bp" / "provenance.json").read_bytes()
+    shard = sorted(solutions.glob("alpha=*/shard-*.parquet"))[1]
+    df = pd.read_parquet(shard)
+    row = int(np.flatnonzero(df["converged"])[0])
+    df.loc[row, "m_f"] -= 0.5  # one solve differs
+    df.to_parquet(shard, index=False)
+    with pytest.raises(InputError, match=r"shard-9\.parquet: the library already holds shard 9 .* different solves"):
+        export_library(solutions, lib, "cr3bp", CFG, CONFIG)
+    res = amorgs("library-export", "--solutions-dir", str(solutions), "--library-dir", str(lib), "--config", str(CONFIG))
+    assert res.returncode == 1 and str(shard) in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert (lib / "cr3bp" / "provenance.json").read_bytes() == manifest_before
+
+
+def test_export_of_identical_held_shards_is_a_no_op_with_one_line(tmp_path):
+    solutions = real_shards(tmp_path, n=2)
+    lib = tmp_path / "library"
+    export_library(solutions, lib, "cr3bp", CFG, CONFIG)
+    before = {p: p.read_bytes() for p in (lib / "cr3bp").rglob("*") if p.is_file()}
+    for shard in solutions.glob("alpha=*/shard-*.parquet"):  # rerun timings differ: still the same solves
+        pd.read_parquet(shard).assign(wall_s=1.0, cpu_s=1.0).to_parquet(shard, index=False)
+    res = amorgs("library-export", "--solutions-dir", str(solutions), "--library-dir", str(lib), "--config", str(CONFIG))
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines() == [
+        f"{lib}/cr3bp: nothing new: the 2 shard(s) under {solutions} are already in the library, identical"]
+    assert {p: p.read_bytes() for p in (lib / "cr3bp").rglob("*") if p.is_file()} == before
+
+
+def test_verify_library_names_an_unlisted_a_truncated_and_a_missing_file(tmp_path):
+    from amorgs.data.library import verify_library
+
+    assert verify_library(LIBRARY, "cr3bp")["totals"]["rows"] > 0
+    lib = tmp_path / "library"
+    export_library(real_shards(tmp_path, n=2), lib, "cr3bp", CFG, CONFIG)
+    target = library_files(lib, "cr3bp", "0.500")[0]
+    stray = lib / "cr3bp" / "alpha=0.500" / "notes.parquet"
+    stray.write_bytes(b"x")
+    with pytest.raises(InputError, match=rf"{stray}: not listed in"):
+        verify_library(lib, "cr3bp")
+    stray.unlink()
+    data = target.read_bytes()
+    target.write_bytes(data[:-100])
+    with pytest.raises(InputError, match=rf"{target}: differs from .*provenance\.json"):
+        verify_library(lib, "cr3bp")
+    target.unlink()
+    with pytest.raises(InputError, match=rf"{target}: listed in .* but missing"):
+        verify_library(lib, "cr3bp")
+    assert verify_library(tmp_path / "none", "cr3bp") is None
+
+
 @pytest.mark.slow
 def test_grow_runs_a_real_batch_and_exports_it(tmp_path, monkeypatch):
     """One batch of a tiny library config through the real Snakemake workflow, then its export; a second
     call starts the next batch and never regenerates or duplicates a held shard."""
     import yaml
 
-    from amorgs.data.library_grow import grow
+    from amorgs.library_grow import grow
 
     cfg = yaml.safe_load(CONFIG.read_text())
     cfg["mlflow"]["enabled"] = False
@@ -264,7 +395,7 @@ def test_export_stores_guesses_by_seed_and_reads_them_back_bit_for_bit(tmp_path)
     original = pd.concat([pd.read_parquet(p) for p in sorted(solutions.glob("alpha=*/shard-*.parquet"))],
                          ignore_index=True)
     lib = tmp_path / "library"
-    export_library(solutions, lib, "cr3bp", CONFIG)
+    export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     (path,) = library_files(lib, "cr3bp", "0.500")
     stored_columns = pq.ParquetFile(path).schema_arrow.names
     assert not [c for c in stored_columns if c.startswith("guess_")]  # compact: 64 columns fewer on disk
@@ -273,9 +404,9 @@ def test_export_stores_guesses_by_seed_and_reads_them_back_bit_for_bit(tmp_path)
     pd.testing.assert_frame_equal(back, original, check_exact=True)
     manifest = read_manifest(lib, "cr3bp")
     assert manifest["files"][0]["guesses"] == "seeded"
-    # exported under today's library config (interpolated coasts): generation 2, with its totals
+    # exported under the generation-1 solver: generation 1, with its totals
     (generation,) = manifest["generations"]
-    assert generation["generation"] == manifest["files"][0]["generation"] == 2
+    assert generation["generation"] == manifest["files"][0]["generation"] == 1
     assert generation["rows"] == len(original) and generation["options_hashes"] == sorted(set(original["options_hash"]))
 
 
@@ -286,4 +417,27 @@ def test_export_refuses_guesses_that_are_not_the_seeded_draw(tmp_path):
     df.loc[3, "guess_tau_s"] += 1e-12
     df.to_parquet(shard, index=False)
     with pytest.raises(InputError, match=r"initial guesses are not the seeded uniform draw"):
-        export_library(solutions, tmp_path / "library", "cr3bp", CONFIG)
+        export_library(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG)
+
+
+def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(tmp_path):
+    """Generation 1 rows held: the library config's own solver (generation 2) may start generation 2; the
+    generation-1 solver with another option (another hash, same generation) is refused naming the key."""
+    from amorgs.data.library import _check_same_library, library_identity
+
+    manifest = {"files": [{"options_hashes": [CFG.problems.cr3bp.solver.digest()], "generation": 1,
+                           "exported": "2026-01-01", "file": "alpha=0.500/x.parquet"}],
+                "seed": CFG.seed, "starts_per_shard": 12, "config_file": str(CONFIG)}
+    today = load_config(LIBRARY_CONFIG)
+    assert today.problems.cr3bp.solver.transcription.coast == "interpolant"
+    _check_same_library(manifest, library_identity(today, "cr3bp"), today.problems.cr3bp.solver, LIBRARY_CONFIG,
+                        tmp_path)
+    import yaml
+
+    other = yaml.safe_load(CONFIG.read_text())
+    other["problems"]["cr3bp"]["solver"]["max_iter"] = 50
+    (tmp_path / "other.yaml").write_text(yaml.safe_dump(other))
+    cfg = load_config(tmp_path / "other.yaml")
+    with pytest.raises(InputError, match="options_hash"):
+        _check_same_library(manifest, library_identity(cfg, "cr3bp"), cfg.problems.cr3bp.solver,
+                            tmp_path / "other.yaml", tmp_path)

@@ -13,6 +13,7 @@ import numpy as np
 import pydantic
 import pytest
 
+from amorgs.problems import get_problem
 from amorgs.solvers.multistart import (
     detach_worker, kill_worker, options_digest, run_multistart, solve_guesses, worker_timeout_s,
 )
@@ -23,7 +24,7 @@ CRASHY = "crashy_problem:CrashyProblem"
 
 def test_crash_hang_and_exception_cost_one_row_each():
     guesses = np.array([[1.2], [3.5], [2.7], [4.5], [5.5], [8.1], [9.9]])
-    records, info = solve_guesses(CRASHY, 0.5, guesses, workers=2, hard_timeout_s=3.0, progress=False)
+    records, info = solve_guesses(get_problem(CRASHY), 0.5, guesses, workers=2, hard_timeout_s=3.0, progress=False)
     statuses = [r.status for r in records]
     assert statuses == ["ok", "crashed", "ok", "timeout", "exception", "ok", "ok"]
     assert [r.x[0] for r, s in zip(records, statuses) if s == "ok"] == [1, 3, 8, 10]
@@ -33,13 +34,13 @@ def test_crash_hang_and_exception_cost_one_row_each():
 
 def test_bad_guess_is_rejected_before_any_work():
     with pytest.raises(ValueError, match=r"guess #1: .*'x'"):
-        solve_guesses(CRASHY, 0.5, np.array([[1.0], [np.nan]]), progress=False)
+        solve_guesses(get_problem(CRASHY), 0.5, np.array([[1.0], [np.nan]]), progress=False)
 
 
 @pytest.mark.slow
 def test_dejong_table_is_identical_for_one_and_two_workers():
-    one = run_multistart("dejong", 0.3, seed=11, starts=12, workers=1, progress=False)
-    two = run_multistart("dejong", 0.3, seed=11, starts=12, workers=2, progress=False)
+    one = run_multistart(get_problem("dejong"), 0.3, seed=11, starts=12, workers=1, progress=False)
+    two = run_multistart(get_problem("dejong"), 0.3, seed=11, starts=12, workers=2, progress=False)
     cols = [c for c in one.columns if c not in ("wall_s", "cpu_s")]
     assert len(one) == 12 and one["start"].tolist() == list(range(12))
     assert one[cols].equals(two[cols])
@@ -48,16 +49,16 @@ def test_dejong_table_is_identical_for_one_and_two_workers():
 
 def test_bad_options_are_rejected_in_the_parent_naming_the_field():
     with pytest.raises(pydantic.ValidationError, match="gtol"):
-        run_multistart("dejong", 0.3, seed=1, starts=2, workers=1, options={"gtol": -1.0}, progress=False)
+        run_multistart(get_problem("dejong"), 0.3, seed=1, starts=2, workers=1, options={"gtol": -1.0}, progress=False)
     with pytest.raises(pydantic.ValidationError, match="max_iters"):
-        solve_guesses("cr3bp", 0.5, np.zeros((0, 64)), options={"max_iters": 5}, progress=False)
+        solve_guesses(get_problem("cr3bp"), 0.5, np.zeros((0, 64)), options={"max_iters": 5}, progress=False)
     with pytest.raises(TypeError, match="BfgsOptions"):
-        run_multistart("dejong", 0.3, seed=1, starts=2, workers=1, options=IpoptOptions(), progress=False)
+        run_multistart(get_problem("dejong"), 0.3, seed=1, starts=2, workers=1, options=IpoptOptions(), progress=False)
 
 
 def test_typed_options_travel_to_the_worker_and_equal_the_mapping_path():
-    typed = run_multistart("dejong", 0.3, 11, 4, 1, BfgsOptions(maxiter=1), progress=False)
-    mapping = run_multistart("dejong", 0.3, 11, 4, 1, {"maxiter": 1}, progress=False)
+    typed = run_multistart(get_problem("dejong"), 0.3, 11, 4, 1, BfgsOptions(maxiter=1), progress=False)
+    mapping = run_multistart(get_problem("dejong"), 0.3, 11, 4, 1, {"maxiter": 1}, progress=False)
     cols = [c for c in typed.columns if c not in ("wall_s", "cpu_s")]
     assert typed[cols].equals(mapping[cols])
     assert (typed["status"] == "max_iterations").all() and (typed["iterations"] == 1).all()

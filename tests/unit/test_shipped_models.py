@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from amorgs.config import load_config
 from amorgs.errors import InputError
 from amorgs.models.shipped import CHECKPOINT_FILES, export_models, verify_models
 
@@ -22,7 +23,8 @@ def trained(tmp_path: Path) -> Path:
 
 def test_export_then_verify_and_detect_tampering(tmp_path):
     dest = tmp_path / "shipped"
-    manifest = export_models(trained(tmp_path), dest, ROOT / "config" / "default.yaml", ROOT / "data" / "library")
+    config = ROOT / "config" / "default.yaml"
+    manifest = export_models(trained(tmp_path), dest, load_config(config), config, ROOT / "data" / "library")
     assert [f["file"] for f in manifest["files"]] == list(CHECKPOINT_FILES)
     assert manifest["library_rows"] > 0 and len(manifest["library_manifest_sha256"]) == 64
     assert verify_models(dest)["config_hash"] == manifest["config_hash"]
@@ -38,6 +40,7 @@ def test_export_then_verify_and_detect_tampering(tmp_path):
 def test_export_needs_every_checkpoint_and_unshipped_folders_are_trusted(tmp_path):
     src = trained(tmp_path)
     (src / "vanilla_cvae.pt").unlink()
+    config = ROOT / "config" / "default.yaml"
     with pytest.raises(InputError, match=r"vanilla_cvae\.pt: checkpoint not found"):
-        export_models(src, tmp_path / "shipped", ROOT / "config" / "default.yaml")
+        export_models(src, tmp_path / "shipped", load_config(config), config)
     assert verify_models(src) is None

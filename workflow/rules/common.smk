@@ -12,10 +12,10 @@ from pathlib import Path
 
 from snakemake_interface_executor_plugins.settings import DeploymentMethod
 
-from amorgs import layout, steps
+from amorgs import layout, lifeline, steps
 from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, SAMPLER_NAMES
 from amorgs.config import load_workflow_config
-from amorgs.errors import ConfigError
+from amorgs.errors import ConfigError, InputError
 from amorgs.data.library import library_files as _library_files
 from amorgs.models.names import CR3BP_MODELS
 from amorgs.problems import PROBLEMS
@@ -23,7 +23,8 @@ from amorgs.problems import PROBLEMS
 try:
     CFG = load_workflow_config(config, [os.path.relpath(f) for f in workflow.configfiles])
     steps.check_settings(CFG)  # whatever a job's settings would reject fails here, before the first job
-except ConfigError as exc:  # one clear message naming file and key, no Python traceback
+    steps.check_libraries(CFG)  # so does a library file that differs from its manifest, or an unlisted one
+except (ConfigError, InputError) as exc:  # one clear message naming the file (and key), no Python traceback
     sys.exit(f"amorgs: {exc}")
 
 
@@ -35,6 +36,9 @@ envvars:
 
 if DeploymentMethod.CONDA not in workflow.deployment_settings.deployment_method:
     os.environ["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), os.getenv("PATH", "")])
+
+# Jobs die with this Snakemake process, even when it is killed outright (kill -9): each job watches it.
+lifeline.mark_workflow()
 
 
 wildcard_constraints:

@@ -37,7 +37,7 @@ def run_cell(
     prob = get_problem(problem)
     guesses = sampler.sample(alpha, start_offset + n, np.random.default_rng(seed))[start_offset:]
     records, info = solve_guesses(
-        problem, alpha, guesses, workers, solver_options, progress=progress, label=f"{problem}/{sampler.name}"
+        prob, alpha, guesses, workers, solver_options, progress=progress, label=f"{problem}/{sampler.name}"
     )
     table = records_table(problem, alpha, seed, guesses, records, prob.variable_names, info["options_hash"])
     table.insert(1, "sampler", sampler.name)

@@ -21,12 +21,16 @@ columns are not stored — each row's guess is row ``start`` of the problem's un
 ``default_rng(seed)``, exactly as the generate rule drew it; export checks that bit for bit and reading
 restores the columns, so readers see the same table either way.  The manifest is the source of truth: a
 library read (:func:`read_library_file`) refuses a file that is not listed, whose hash or row count
-differs, or that is not a readable Parquet table — always naming the file.
+differs, or that is not a readable Parquet table — always naming the file; :func:`verify_library` checks the
+whole library (and refuses unlisted files) before a workflow's first job.
 
 Only the library config (``config/library.yaml``: its own base seed, generate/merge only) feeds the library:
 :func:`export_library` checks every shard against it (seed derived from (seed, problem, α, shard), one
-row per configured start, one solver-option hash) and refuses anything else, naming the file.  Shards are
-immutable (same α and index ⇒ same seed ⇒ same rows), so an export adds only indices not yet listed.
+row per configured start, the config's solver-option hash) and refuses anything else, naming the file.  A
+library belongs to one config identity (seed, starts per shard, solver options: :func:`library_identity`,
+recorded in the manifest): export refuses any other config, whatever its file name — another config's shards
+need another library directory.  Shards are immutable (same α and index ⇒ same seed ⇒ same rows), so an
+export adds only indices not yet listed; a listed index whose shard holds other solves is refused, naming it.
 Solutions are stored inside the problem's box: values outside it by at most :data:`CLIP_TOLERANCE` (the
 NLP's own bound tolerance) are clipped on export; anything farther is refused.
 
@@ -48,7 +52,7 @@ import pandas as pd
 
 from amorgs.data.io import write_json, write_parquet
 from amorgs.data.seeds import shard_seed
-from amorgs.data.tables import merge_shards, validate_solutions
+from amorgs.data.tables import TIMING_COLUMNS, merge_shards, validate_solutions
 from amorgs.errors import InputError
 from amorgs.problems import get_problem
 
@@ -174,6 +178,33 @@ def restore_seeded_guesses(df: pd.DataFrame, problem: str) -> pd.DataFrame:
     return pd.concat([df.iloc[:, :at], guesses, df.iloc[:, at:]], axis=1)
 
 
+def verify_library(library_dir: str | Path, problem: str) -> dict | None:
+    """Check a whole library against its manifest before any job reads it: every listed file present with
+    its size and SHA-256, and no file under ``library_dir/problem`` that the manifest does not list.  Raises
+    :class:`InputError` naming the first offending file; returns the manifest (None if there is no library:
+    nothing to check)."""
+    root = Path(library_dir) / problem
+    manifest = read_manifest(library_dir, problem)
+    if manifest is None:
+        if root.is_dir() and any(p.is_file() for p in root.rglob("*")):
+            raise InputError(f"{root}: library files but no {MANIFEST}")
+        return None
+    listed = {e["file"]: e for e in manifest["files"]}
+    for path in sorted(p for p in root.rglob("*") if p.is_file()):
+        rel = path.relative_to(root).as_posix()
+        if rel != MANIFEST and rel not in listed:
+            raise InputError(f"{path}: not listed in {root / MANIFEST} (a library file must be added by "
+                             "`amorgs library-export`; remove it or restore the library with git)")
+    for rel, entry in listed.items():
+        path = root / rel
+        if not path.is_file():
+            raise InputError(f"{path}: listed in {root / MANIFEST} but missing")
+        if path.stat().st_size != entry["bytes"] or sha256_file(path) != entry["sha256"]:
+            raise InputError(f"{path}: differs from {root / MANIFEST} (size or SHA-256; the file was modified "
+                             "after export; restore it with git)")
+    return manifest
+
+
 def read_library(library_dir: str | Path, problem: str, alpha_label: str, max_rows: int | None = None) -> pd.DataFrame:
     """Every verified library row of one (problem, α label) in (shard, start) order, optionally only the first
     ``max_rows`` of them (a fixed slice); an empty table if there are none."""
@@ -192,7 +223,8 @@ def tag_source(df: pd.DataFrame, source: str) -> pd.DataFrame:
 # ------------------------------------------------------------------------------------------- export
 
 
-def _git_commit() -> str:
+def git_commit() -> str:
+    """The checkout's commit (``git rev-parse HEAD``), or ``unknown`` outside a git checkout."""
     try:
         return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
@@ -200,10 +232,10 @@ def _git_commit() -> str:
 
 
 def check_library_shard(df: pd.DataFrame, path: str | Path, problem: str, base_seed: int, starts: int,
-                        alpha_values: dict[str, float]) -> None:
+                        alpha_values: dict[str, float], options_hash: str | None = None) -> None:
     """Refuse (``InputError`` naming the file) a shard that the library config did not produce: wrong
     problem or α, a seed other than ``shard_seed(base_seed, problem, α, shard)``, a row count other than
-    ``starts``, or mixed solver-option hashes."""
+    ``starts``, mixed solver-option hashes, or (``options_hash`` given) a hash other than the config's."""
     where = str(path)
     if len(df) == 0:
         raise InputError(f"{where}: empty shard")
@@ -232,6 +264,9 @@ def check_library_shard(df: pd.DataFrame, path: str | Path, problem: str, base_s
         raise InputError(f"{where}: {len(df)} rows, the library config makes {starts} per shard")
     if df["options_hash"].nunique() != 1:
         raise InputError(f"{where}: mixed solver-option hashes {sorted(df['options_hash'].unique())}")
+    if options_hash is not None and df["options_hash"].iloc[0] != options_hash:
+        raise InputError(f"{where}: solver-option hash {df['options_hash'].iloc[0]}, the library config's is "
+                         f"{options_hash}: this shard was solved with other options and cannot enter the library")
 
 
 def clip_to_bounds(df: pd.DataFrame, names, lower, upper, where: str, tol: float = CLIP_TOLERANCE) -> pd.DataFrame:
@@ -284,48 +319,128 @@ def _generations(files: list[dict]) -> list[dict]:
     return out
 
 
-def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, config_file: str | Path) -> dict:
+def library_identity(cfg, problem: str) -> dict:
+    """What fixes the rows of a library shard besides its α and index: the base seed, the starts per shard and
+    the solver-option hash of ``cfg`` (a typed config) for ``problem``.  Two configs with the same identity
+    make identical shards; a library holds the shards of one identity only."""
+    section = getattr(cfg.problems, problem)
+    return {"seed": int(cfg.seed), "starts_per_shard": int(section.generate.starts_per_shard),
+            "options_hash": section.solver.digest()}
+
+
+def manifest_identity(manifest: dict) -> dict:
+    """The identity (:func:`library_identity`) a manifest records; a manifest written before the identity had
+    its own key gives the solver-option hash of its latest export."""
+    if "identity" in manifest:
+        return manifest["identity"]
+    latest = max(manifest["files"], key=lambda e: (e["exported"], e["file"]))
+    return {"seed": manifest["seed"], "starts_per_shard": manifest["starts_per_shard"],
+            "options_hash": latest["options_hashes"][-1]}
+
+
+def _generation_of(manifest: dict, options_hash: str) -> int:
+    """The generation of the files whose rows carry ``options_hash`` (1 when none says otherwise)."""
+    return max((e.get("generation", 1) for e in manifest["files"] if options_hash in e["options_hashes"]), default=1)
+
+
+def _check_same_library(manifest: dict, identity: dict, solver, config_file: str | Path, root: Path) -> None:
+    """Refuse a config whose shards would differ from the library's (``InputError`` naming both).  A solver of
+    a later generation (:func:`solver_generation`) than the library's current one starts that generation:
+    its options hash becomes the library's."""
+    held = manifest_identity(manifest)
+    new_generation = solver_generation(solver) > _generation_of(manifest, held["options_hash"])
+    diff = [f"{k} {identity[k]!r} (the library's: {held[k]!r})" for k in ("seed", "starts_per_shard", "options_hash")
+            if identity[k] != held[k] and not (k == "options_hash" and new_generation)]
+    if diff:
+        raise InputError(
+            f"{config_file}: not the config of the library {root} (recorded in {root / MANIFEST}: "
+            f"{manifest.get('config_file')}): {', '.join(diff)}; a different library needs its own --library-dir"
+        )
+
+
+def _same_solves(shard: pd.DataFrame, held: pd.DataFrame) -> bool:
+    """Whether a shard table holds the same solves as the library's rows of that shard (timings aside)."""
+    columns = [c for c in held.columns if c not in TIMING_COLUMNS]
+    if sorted(shard.columns) != sorted(held.columns) or len(shard) != len(held):
+        return False
+    a = shard[columns].sort_values("start").reset_index(drop=True)
+    b = held[columns].sort_values("start").reset_index(drop=True)
+    try:
+        pd.testing.assert_frame_equal(a, b, check_dtype=False, check_exact=True)
+    except AssertionError:
+        return False
+    return True
+
+
+def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, cfg, config_file: str | Path) -> dict:
     """Add every finished library-config shard under ``solutions_dir/alpha=*/`` not yet in the library.
 
-    Per α, the new shards become one consolidated file ``alpha={label}/shards-{first}-{last}.parquet``
-    (solutions clipped into the box, see :func:`clip_to_bounds`), and the manifest gains its entry.  Every
-    shard is checked first (:func:`check_library_shard`); one bad shard refuses the whole export.
-    Returns a summary: files and rows added, and the library totals.
+    ``cfg`` is the typed config read from ``config_file`` (:func:`amorgs.config.load_config`; the file's text is
+    recorded).  The library is one config's: ``config_file`` must have the identity (:func:`library_identity`) that the
+    manifest records, whatever file it is (another config's shards need another ``library_dir``).  Every shard
+    is checked (:func:`check_library_shard`; a new one must carry the config's solver-option hash, a held one
+    may predate it); a shard whose index the library holds must hold the same solves as the library (timings
+    aside), or the export is refused naming the file; one bad shard refuses the whole export.  Per α, the new shards become one consolidated file
+    ``alpha={label}/shards-{first}-{last}.parquet`` (solutions clipped into the box, see
+    :func:`clip_to_bounds`), and the manifest gains its entry.  Nothing new: the library is left untouched.
+    Returns a summary: files and rows added, held shards found identical, and the library totals.
     """
-    from amorgs.config import load_config
-
-    cfg = load_config(config_file)
     section = getattr(cfg.problems, problem)
     alpha_values = section.alpha_values()
+    identity = library_identity(cfg, problem)
     prob = get_problem(problem)
     root = Path(library_dir) / problem
-    manifest = read_manifest(library_dir, problem) or {"format": FORMAT, "problem": problem, "files": [], "exports": []}
-    held = {(e["file"].split("/")[0], k) for e in manifest["files"] for k in e["shards"]}
+    manifest = read_manifest(library_dir, problem)
+    if manifest is not None:
+        _check_same_library(manifest, identity, section.solver, config_file, root)
+    else:
+        manifest = {"format": FORMAT, "problem": problem, "files": [], "exports": []}
+    holder = {(e["file"].split("/")[0], k): e["file"] for e in manifest["files"] for k in e["shards"]}
+    held_tables: dict[str, pd.DataFrame] = {}
+
+    def clipped(df: pd.DataFrame, where) -> pd.DataFrame:
+        return clip_to_bounds(df, prob.variable_names, prob.lower, prob.upper, where=str(where))
 
     new: dict[str, list[tuple[int, pd.DataFrame]]] = {}
+    identical = 0
     for path in sorted(Path(solutions_dir).glob("alpha=*/shard-*.parquet")):
         label_dir = path.parent.name
         shard = int(path.stem.removeprefix("shard-"))
-        if (label_dir, shard) in held:
-            continue
         df = read_table(path)
-        check_library_shard(df, path, problem, cfg.seed, section.generate.starts_per_shard, alpha_values)
+        held_file = holder.get((label_dir, shard))
+        check_library_shard(df, path, problem, cfg.seed, section.generate.starts_per_shard, alpha_values,
+                            options_hash=None if held_file else identity["options_hash"])
         if int(df["shard"].iloc[0]) != shard:
             raise InputError(f"{path}: file name says shard {shard}, rows say {int(df['shard'].iloc[0])}")
-        new.setdefault(label_dir, []).append((shard, df))
+        if held_file is None:
+            new.setdefault(label_dir, []).append((shard, df))
+            continue
+        if held_file not in held_tables:
+            held_tables[held_file] = read_library_file(root / held_file, library_dir, problem)
+        held = held_tables[held_file]
+        if not _same_solves(clipped(df, path), held[held["shard"] == shard]):
+            raise InputError(f"{path}: the library already holds shard {shard} at {label_dir} ({root / held_file}) "
+                             "with different solves; shards are immutable, so this one was not made by the "
+                             "library's config and code")
+        identical += 1
+
+    files = manifest["files"]
+    if not new:
+        if not files:
+            raise InputError(f"no library-config shard tables under {solutions_dir}/alpha=*/ to export")
+        return {"files_added": 0, "rows_added": 0, "held_identical": identical, **manifest["totals"]}
 
     now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-    commit = _git_commit()
+    commit = git_commit()
     added_rows = 0
     for label_dir, parts in sorted(new.items()):
         shards = sorted(k for k, _ in parts)
-        df = merge_shards(d for _, d in parts)
         where = f"{solutions_dir}/{label_dir}"
-        df = clip_to_bounds(df, prob.variable_names, prob.lower, prob.upper, where=where)
+        df = clipped(merge_shards(d for _, d in parts), where)
         rel = f"{label_dir}/shards-{shards[0]:05d}-{shards[-1]:05d}.parquet"
         write_parquet(drop_seeded_guesses(df, problem, where), root / rel)
         conv = df[df["converged"]]
-        manifest["files"].append({
+        files.append({
             "file": rel,
             "alpha": float(df["alpha"].iloc[0]),
             "shards": shards,
@@ -342,20 +457,17 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
             "git_commit": commit,
         })
         added_rows += len(df)
-    manifest["files"].sort(key=lambda e: e["file"])
-    if new:
-        manifest["exports"].append({"created": now, "git_commit": commit, "files_added": len(new), "rows_added": added_rows})
-    files = manifest["files"]
-    if not files:
-        raise InputError(f"no library-config shard tables under {solutions_dir}/alpha=*/ to export")
+    files.sort(key=lambda e: e["file"])
+    manifest["exports"].append({"created": now, "git_commit": commit, "files_added": len(new), "rows_added": added_rows})
     total_bytes = sum(e["bytes"] for e in files)
     rows = sum(e["rows"] for e in files)
     manifest.update({
         "problem": problem,
         "config_file": str(config_file),
         "config": Path(config_file).read_text(),
-        "seed": cfg.seed,
-        "starts_per_shard": section.generate.starts_per_shard,
+        "seed": identity["seed"],
+        "starts_per_shard": identity["starts_per_shard"],
+        "identity": identity,
         "totals": {
             "files": len(files),
             "shards": sum(len(e["shards"]) for e in files),
@@ -369,7 +481,7 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
         "per_alpha": _per_alpha(files),
     })
     write_json(manifest, root / MANIFEST)
-    return {"files_added": len(new), "rows_added": added_rows, **manifest["totals"]}
+    return {"files_added": len(new), "rows_added": added_rows, "held_identical": identical, **manifest["totals"]}
 
 
 def held_shards(library_dir: str | Path, problem: str) -> set[tuple[str, int]]:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from amorgs.data.io import atomic_path, write_json
 from amorgs.data.library import MANIFEST as LIBRARY_MANIFEST
-from amorgs.data.library import _git_commit, read_manifest, sha256_file
+from amorgs.data.library import git_commit, read_manifest, sha256_file
 from amorgs.errors import InputError
 from amorgs.models.names import CR3BP_MODELS
 
@@ -29,14 +29,12 @@ MANIFEST = "provenance.json"
 CHECKPOINT_FILES = tuple(f"{name}.pt" for name in CR3BP_MODELS)
 
 
-def export_models(models_dir: str | Path, dest: str | Path, config_file: str | Path,
+def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: str | Path,
                   library_dir: str | Path = "data/library", problem: str = "cr3bp") -> dict:
     """Copy the checkpoints of ``models_dir`` (a workflow run's ``results/cr3bp/models``) to ``dest`` and write
-    the manifest; returns it."""
-    from amorgs.config import load_config
-
+    the manifest; returns it.  ``cfg``: the typed config of the run that trained them, read from
+    ``config_file`` (:func:`amorgs.config.load_config`)."""
     src, dst = Path(models_dir), Path(dest)
-    cfg = load_config(config_file)
     files = []
     for name in CHECKPOINT_FILES:
         if not (src / name).is_file():
@@ -56,7 +54,7 @@ def export_models(models_dir: str | Path, dest: str | Path, config_file: str | P
         "library_manifest_sha256": sha256_file(library_path) if library is not None else None,
         "library_rows": library["totals"]["rows"] if library is not None else 0,
         "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "git_commit": _git_commit(),
+        "git_commit": git_commit(),
     }
     write_json(manifest, dst / MANIFEST)
     return manifest

@@ -21,17 +21,10 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 import torch
 from torch import Tensor, nn
-
-
-class TrainableModel(Protocol):
-    """What :func:`train` needs: an ``nn.Module`` with a batch ``loss``."""
-
-    def loss(self, x: Tensor, cond: Tensor) -> tuple[Tensor, dict[str, float]]: ...
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 The problem supplies the NLP (:class:`TranscribedProblem`); this module solves it under the caps of
 :class:`~amorgs.solvers.options.IpoptOptions`, stops stalled solves, and turns every outcome into a
-:class:`~amorgs.problems.base.SolveRecord` — a numerical failure is a record, never an exception.  Build the
+:class:`~amorgs.solvers.record.SolveRecord` — a numerical failure is a record, never an exception.  Build the
 solver inside the process that uses it: CasADi objects do not pickle.
 """
 
@@ -15,7 +15,8 @@ from typing import Protocol
 import casadi as ca
 import numpy as np
 
-from amorgs.problems.base import SolveRecord, check_alpha
+from amorgs.alphas import check_alpha
+from amorgs.solvers.record import SolveRecord
 from amorgs.solvers.codegen import ipopt_nlpsol
 from amorgs.solvers.options import IpoptOptions, TranscriptionOptions
 

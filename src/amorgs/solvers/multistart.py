@@ -10,10 +10,16 @@ first, wall cap only as a safety net), so the table is identical for any number 
 crashes or hangs past ``hard_timeout_s`` is killed and replaced; its guess becomes one row with status
 ``crashed`` / ``timeout`` — it never takes the job down.
 
+The pool takes a *problem object* (the :class:`~amorgs.problems.base.Problem` protocol: ``name``,
+``variable_names``, ``check_guess``, ``sample_uniform``, ``make_local_solver``, optionally ``options_type``;
+the caller resolves a name with :func:`amorgs.problems.get_problem`): it is plain data, pickled to each worker,
+which builds its local solver there.  So the solvers import nothing of the problem families.
+
 Every worker leads its own process group, and the pool kills the whole group: a worker killed while gcc
 builds its solver (:mod:`amorgs.solvers.codegen`) takes the compiler with it instead of leaving it running
 under init.  On Linux a worker also dies with the process that started it (``PR_SET_PDEATHSIG``), so a
-pool killed outright (``kill -9``, Snakemake killing a job's process group) leaves no worker behind.
+pool killed outright (``kill -9``, Snakemake killing a job's process group) leaves no worker behind.  Workers
+start with SIGINT ignored: a Ctrl-C is the caller's (it stops the pool, which kills them).
 """
 
 from __future__ import annotations
@@ -27,14 +33,15 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from multiprocessing.connection import wait
 
 import numpy as np
 import pandas as pd
 
-from amorgs.problems import SolveRecord, get_problem
 from amorgs.solvers.options import Options, as_options
+from amorgs.solvers.record import SolveRecord
 
 BUILD_TIMEOUT_S = 900.0
 #: A worker's hard timeout per solve (s) when the solver has no wall cap of its own (``max_wall_s``).
@@ -96,12 +103,28 @@ def kill_worker(proc) -> None:
     proc.join(5)
 
 
-def _worker(conn, problem_name: str, options: OptionsLike) -> None:
-    """Worker loop: build the solver, announce readiness, then answer (index, x0, alpha) tasks."""
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT while a worker starts, so that it starts with SIGINT ignored (an ignored signal stays
+    ignored across exec, and Python keeps it so): until :func:`detach_worker` takes it out of the terminal's
+    process group, a Ctrl-C would otherwise reach the worker too and print its own traceback."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals are not ours to change
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _worker(conn, problem, options: OptionsLike) -> None:
+    """Worker loop: build the problem's local solver, announce readiness, then answer (index, x0, alpha) tasks."""
     detach_worker()
     try:
-        solver = get_problem(problem_name).make_local_solver(options)
-        digest = getattr(solver, "options_hash", None) or options_digest(problem_name, options)
+        solver = problem.make_local_solver(options)
+        digest = getattr(solver, "options_hash", None) or options_digest(problem.name, options)
         conn.send(("ready", digest, float(getattr(solver, "build_s", 0.0))))
     except Exception as exc:  # configuration errors surface in the parent with their message
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
@@ -126,10 +149,11 @@ def _worker(conn, problem_name: str, options: OptionsLike) -> None:
 class _Slot:
     """One worker process and the task it is working on."""
 
-    def __init__(self, ctx, problem: str, options: OptionsLike):
+    def __init__(self, ctx, problem, options: OptionsLike):
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_worker, args=(child, problem, options), daemon=True)
-        self.proc.start()
+        with _sigint_ignored():  # Ctrl-C is the caller's to handle: a starting worker never sees it
+            self.proc.start()
         child.close()
         self.ready = False
         self.task: int | None = None
@@ -141,7 +165,7 @@ class _Slot:
 
 
 def solve_guesses(
-    problem: str,
+    problem,
     alpha: float,
     guesses: np.ndarray,
     workers: int = 1,
@@ -150,17 +174,17 @@ def solve_guesses(
     progress: bool = True,
     label: str = "",
 ) -> tuple[list[SolveRecord], dict]:
-    """Solve every row of ``guesses`` at ``alpha``; returns records in input order and run info.
+    """Solve every row of ``guesses`` at ``alpha`` with ``problem``'s local solver (a problem object, see the
+    module docstring); returns records in input order and run info.
 
     ``options``: the solver's options (see :func:`resolve_options`); ``hard_timeout_s`` (default
     :func:`worker_timeout_s`) kills a stuck worker.
     """
-    prob = get_problem(problem)
-    options = resolve_options(prob, options)
+    options = resolve_options(problem, options)
     guesses = np.asarray(guesses, float)
     for i, g in enumerate(guesses):
         try:
-            prob.check_guess(g)
+            problem.check_guess(g)
         except ValueError as exc:
             raise ValueError(f"guess #{i}: {exc}") from None
     if workers < 1:
@@ -203,7 +227,7 @@ def solve_guesses(
                         msg = None
                 if msg is not None:
                     if msg[0] == "error":
-                        raise ValueError(f"{problem} solver could not be built: {msg[1]}")
+                        raise ValueError(f"{problem.name} solver could not be built: {msg[1]}")
                     if msg[0] == "ready":
                         slot.ready = True
                         info["options_hash"] = msg[1]
@@ -216,7 +240,7 @@ def solve_guesses(
                     converged += bool(record.converged)
                     if progress:
                         rate = (time.monotonic() - t_start) / done
-                        print(f"[{label or problem} α={alpha:g}] {done}/{n} solved, {converged} converged, "
+                        print(f"[{label or problem.name} α={alpha:g}] {done}/{n} solved, {converged} converged, "
                               f"{rate:.1f} s/solve wall", file=sys.stderr, flush=True)
                     dispatch(slot)
                     continue
@@ -232,7 +256,7 @@ def solve_guesses(
                     if pending:
                         slots.append(_Slot(ctx, problem, options))
                 elif not slot.ready and (dead or elapsed > limit):
-                    raise RuntimeError(f"{problem} worker failed to start (exit code {slot.proc.exitcode})")
+                    raise RuntimeError(f"{problem.name} worker failed to start (exit code {slot.proc.exitcode})")
     finally:
         for slot in slots:
             slot.kill()
@@ -240,7 +264,7 @@ def solve_guesses(
 
 
 def run_multistart(
-    problem_name: str,
+    problem,
     alpha: float,
     seed: int,
     starts: int,
@@ -249,17 +273,16 @@ def run_multistart(
     progress: bool = True,
     hard_timeout_s: float | None = None,
 ) -> pd.DataFrame:
-    """``starts`` uniform guesses drawn with ``default_rng(seed)``, solved with ``options`` (the problem's
+    """``starts`` uniform guesses of ``problem`` (a problem object) drawn with ``default_rng(seed)``, solved with ``options`` (the problem's
     options object; a mapping or ``None`` is converted, see :func:`resolve_options`); one row per start.
 
     Columns: problem, alpha, seed, start, guess_<var>…, <var>…, status, converged, solver_success,
     objective, iterations, wall_s, cpu_s, defect, verify_defect, message, options_hash.
     """
-    prob = get_problem(problem_name)
-    options = resolve_options(prob, options)
-    guesses = prob.sample_uniform(alpha, starts, np.random.default_rng(seed))
-    records, info = solve_guesses(problem_name, alpha, guesses, workers, options, hard_timeout_s, progress)
-    return records_table(problem_name, alpha, seed, guesses, records, prob.variable_names, info["options_hash"])
+    options = resolve_options(problem, options)
+    guesses = problem.sample_uniform(alpha, starts, np.random.default_rng(seed))
+    records, info = solve_guesses(problem, alpha, guesses, workers, options, hard_timeout_s, progress)
+    return records_table(problem.name, alpha, seed, guesses, records, problem.variable_names, info["options_hash"])
 
 
 def records_table(problem, alpha, seed, guesses, records, names, options_hash) -> pd.DataFrame:

@@ -151,6 +151,18 @@ def check_settings(cfg: Config) -> None:
         registry()[rule].settings(cfg, w)
 
 
+def check_libraries(cfg: Config) -> None:
+    """Check every solution library ``cfg`` reads against its manifest (the Snakefile calls this at start):
+    a tampered, truncated, missing or unlisted file stops the workflow before the first job, naming the file
+    (:func:`amorgs.data.library.verify_library`)."""
+    from amorgs.data.library import verify_library
+
+    for name in type(cfg.problems).model_fields:
+        section = getattr(cfg.problems, name)
+        if section.enabled and section.library.enabled:
+            verify_library(section.library.path, name)
+
+
 def check_rules(rules: Mapping[str, Any]) -> None:
     """Check the workflow's rules against the steps: ``rules`` maps each Snakemake rule name to its
     ``params.job`` (None for rules without one, like ``all``).  Every step needs a rule of its name, and a
@@ -210,8 +222,9 @@ def job_spec(rule: str, cfg: Config, wildcards: Wildcards, input: Mapping, outpu
 
 def run_job(spec_json: str) -> None:
     """Run one job from the JSON of :func:`job_spec` inside its MLflow child run (tagged with the rule and the
-    wildcards Snakemake gave; the settings logged as parameters)."""
-    from amorgs import tracking
+    wildcards Snakemake gave; the settings logged as parameters).  The job ends, its run KILLED, if the
+    workflow that started it is killed (:mod:`amorgs.lifeline`)."""
+    from amorgs import lifeline, tracking
 
     try:
         spec = json.loads(spec_json)
@@ -225,6 +238,7 @@ def run_job(spec_json: str) -> None:
     settings = step.settings_type.model_validate(spec["settings"])
     job = Job(rule, dict(spec["wildcards"]), spec["input"], spec["output"], int(spec["threads"]), settings)
     with tracking.job_run(rule, job.wildcards) as run:
+        lifeline.watch_workflow()
         run.log_params(settings.model_dump(mode="json"))
         step.run(job, run)
 

@@ -50,9 +50,10 @@ def run_generate(job: Job, run) -> None:
     s: GenerateSettings = job.settings
     output = job.output["table"]
     t0 = time.perf_counter()
-    df = run_multistart(s.problem, s.alpha, s.seed, s.starts, job.threads, s.solver, progress=True)
+    problem = get_problem(s.problem)
+    df = run_multistart(problem, s.alpha, s.seed, s.starts, job.threads, s.solver, progress=True)
     df.insert(int(df.columns.get_loc("seed")) + 1, "shard", int(job.wildcards["shard"]))
-    validate_solutions(df, get_problem(s.problem).variable_names, where=output)
+    validate_solutions(df, problem.variable_names, where=output)
     write_parquet(df, output)
     conv = df[df["converged"]]
     run.log_metrics({

@@ -23,7 +23,6 @@ DRY_MASS_KG = 300.0
 GTO_FUEL_KG = 700.0
 
 EARTH_POSITION = (-MU, 0.0, 0.0)
-MOON_POSITION = (1.0 - MU, 0.0, 0.0)
 
 
 def thrust_nd(thrust_n: float) -> float:

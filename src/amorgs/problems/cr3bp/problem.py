@@ -35,7 +35,6 @@ class LowThrustTransfer:
     options_type = IpoptOptions
 
     def __init__(self, boundary_conditions: dict):
-        self.bc = boundary_conditions
         self.initial_state = np.asarray(boundary_conditions["initial_state"], float)
         self.terminal_state = np.asarray(boundary_conditions["terminal_state"], float)
         self.variable_names = variable_names(N_SEGMENTS)

@@ -123,7 +123,7 @@ def grow(config_file: str | Path, library_dir: str | Path = "data/library", prob
         log(f"library-grow: batch {batch}: {len(targets)} shard job(s) in {workdir}"
             + (f" (α below {until_converged} converged: {', '.join(f'{a:g}' for a in grown)})" if until_converged else ""))
         done = subprocess.run(snakemake_command(config_file, workdir, cores, targets), check=False)
-        summary = export_library(solutions, library_dir, problem, config_file)
+        summary = export_library(solutions, library_dir, problem, load_config(config_file), config_file)
         summaries.append({"batch": batch, "snakemake_exit": done.returncode, **summary})
         log(f"library-grow: batch {batch} exported: {summary['rows_added']} new rows; library {summary['rows']} rows, "
             f"{summary['converged']} converged, {summary['cpu_hours']:.2f} CPU-hours")
