@@ -77,8 +77,10 @@ def find_snakefile(root: str | Path = ".") -> Path:
     raise FileNotFoundError(f"no Snakefile under {Path(root).resolve()}: run library-grow from the repository root")
 
 
-def snakemake_command(config_file: str | Path, workdir: str | Path, cores: int, targets: list[str]) -> list[str]:
-    """The Snakemake call of one batch: the repository's workflow, run in ``workdir``."""
+def snakemake_command(config_file: str | Path, workdir: str | Path, cores: int, targets: list[str],
+                      profile: str | Path | None = None) -> list[str]:
+    """The Snakemake call of one batch: the repository's workflow, run in ``workdir``; with ``profile`` (e.g.
+    ``workflow/profiles/slurm``) its jobs go where that profile sends them."""
     return [
         sys.executable, "-m", "snakemake", *targets,
         "--snakefile", str(find_snakefile()),
@@ -87,17 +89,19 @@ def snakemake_command(config_file: str | Path, workdir: str | Path, cores: int, 
         "--cores", str(cores),
         "--rerun-incomplete",
         "--keep-going",
+        *(["--profile", str(Path(profile).resolve())] if profile else []),
     ]
 
 
 def grow(config_file: str | Path, library_dir: str | Path = "data/library", problem: str = "cr3bp",
          workdir: str | Path = "results/library-grow", cores: int = 2, batches: int = 1,
          hours: float | None = None, niceness: int = 19, log=print, alphas: list[float] | None = None,
-         until_converged: int | None = None) -> list[dict]:
+         until_converged: int | None = None, profile: str | Path | None = None) -> list[dict]:
     """Run up to ``batches`` batches (stop starting new ones after ``hours``), exporting after each one;
     ``alphas`` restricts the batches to those library α.  With ``until_converged``, each batch covers only
     the α (of ``alphas``) that still hold fewer verified converged solutions than that, and growth stops
     once none does — so the slow, low-convergence α get the extra batches they need and the others none.
+    ``profile`` is the Snakemake profile of every batch (e.g. ``workflow/profiles/slurm``: jobs on the cluster).
 
     Returns one export summary per batch (see :func:`export_library`).  ``niceness`` is added to this
     process's priority (and so to Snakemake's and its jobs') before anything starts.
@@ -122,7 +126,7 @@ def grow(config_file: str | Path, library_dir: str | Path = "data/library", prob
         targets = batch_targets(config_file, library_dir, problem, batch, grown)
         log(f"library-grow: batch {batch}: {len(targets)} shard job(s) in {workdir}"
             + (f" (α below {until_converged} converged: {', '.join(f'{a:g}' for a in grown)})" if until_converged else ""))
-        done = subprocess.run(snakemake_command(config_file, workdir, cores, targets), check=False)
+        done = subprocess.run(snakemake_command(config_file, workdir, cores, targets, profile), check=False)
         summary = export_library(solutions, library_dir, problem, load_config(config_file), config_file)
         summaries.append({"batch": batch, "snakemake_exit": done.returncode, **summary})
         log(f"library-grow: batch {batch} exported: {summary['rows_added']} new rows; library {summary['rows']} rows, "

@@ -65,7 +65,7 @@ def cmd_library_grow(args: argparse.Namespace) -> None:
     from amorgs.library_grow import grow
 
     grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice,
-         alphas=args.alphas, until_converged=args.until_converged)
+         alphas=args.alphas, until_converged=args.until_converged, profile=args.profile)
 
 
 def cmd_boundary_conditions(args: argparse.Namespace) -> None:
@@ -204,7 +204,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--problem", default="cr3bp", choices=("cr3bp",), help="problem whose library grows")
     p.add_argument("--library-dir", default="data/library", help="library root")
     p.add_argument("--workdir", default="results/library-grow", help="Snakemake working directory of the batches")
-    p.add_argument("--cores", type=int, default=2, help="cores Snakemake may use")
+    p.add_argument("--cores", type=int, default=2, help="cores Snakemake may use (on a cluster: for its local jobs)")
+    p.add_argument("--profile", default=None,
+                   help="Snakemake profile of the batches, e.g. workflow/profiles/slurm (default: this machine)")
     p.add_argument("--batches", type=int, default=1, help="batches to run (each: every α × generate.shards shards)")
     p.add_argument("--hours", type=float, default=None, help="start no new batch after this many hours")
     p.add_argument("--nice", type=int, default=19, help="niceness added before starting (0: none)")

@@ -221,6 +221,17 @@ def test_focused_batches_grow_only_the_chosen_alpha(tmp_path):
         batch_targets(CONFIG, LIBRARY, "cr3bp", 0, alphas=[0.33])
 
 
+def test_grow_batches_go_through_a_snakemake_profile(monkeypatch):
+    """`library-grow --profile workflow/profiles/slurm`: each batch's Snakemake call takes that profile (absolute,
+    since the batch runs in its own directory); without it, none (this machine, --cores)."""
+    from amorgs.library_grow import snakemake_command
+
+    monkeypatch.chdir(ROOT)
+    cmd = snakemake_command(CONFIG, "results/library-grow", 2, ["a.parquet"], profile="workflow/profiles/slurm")
+    assert cmd[cmd.index("--profile") + 1] == str(ROOT / "workflow" / "profiles" / "slurm")
+    assert "--profile" not in snakemake_command(CONFIG, "results/library-grow", 2, ["a.parquet"])
+
+
 def test_grow_until_converged_picks_the_short_alphas_and_stops_when_none_is_left(tmp_path):
     from amorgs.library_grow import grow, short_alphas
 
