@@ -432,19 +432,21 @@ def test_export_refuses_guesses_that_are_not_the_seeded_draw(tmp_path):
 
 
 def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(tmp_path):
-    """Generation 1 rows held: the library config's own solver (generation 2) may start generation 2; the
+    """Generation 1 rows held: the library config with interpolated coasts (generation 2) may start generation 2; the
     generation-1 solver with another option (another hash, same generation) is refused naming the key."""
     from amorgs.data.library import _check_same_library, library_identity
 
     manifest = {"files": [{"options_hashes": [CFG.problems.cr3bp.solver.digest()], "generation": 1,
                            "exported": "2026-01-01", "file": "alpha=0.500/x.parquet"}],
                 "seed": CFG.seed, "starts_per_shard": 12, "config_file": str(CONFIG)}
-    today = load_config(LIBRARY_CONFIG)
-    assert today.problems.cr3bp.solver.transcription.coast == "interpolant"
-    _check_same_library(manifest, library_identity(today, "cr3bp"), today.problems.cr3bp.solver, LIBRARY_CONFIG,
-                        tmp_path)
     import yaml
 
+    fast = yaml.safe_load(LIBRARY_CONFIG.read_text())
+    fast["problems"]["cr3bp"]["solver"].update(transcription={"coast": "interpolant"})
+    (tmp_path / "fast.yaml").write_text(yaml.safe_dump(fast))
+    today = load_config(tmp_path / "fast.yaml")
+    _check_same_library(manifest, library_identity(today, "cr3bp"), today.problems.cr3bp.solver, LIBRARY_CONFIG,
+                        tmp_path)
     other = yaml.safe_load(CONFIG.read_text())
     other["problems"]["cr3bp"]["solver"]["max_iter"] = 50
     (tmp_path / "other.yaml").write_text(yaml.safe_dump(other))
