@@ -113,13 +113,13 @@ QUASI_NEWTON = {
     "SR1 update (limited_memory_update_type sr1)": IPOPT_SCREEN["SR1 update"],
     "L-BFGS history 6": IPOPT_SCREEN["L-BFGS history 6"],
 }
-#: ``--coast``: the default before issue 22 (coasts integrated with RK8 at every evaluation, Sherman–Morrison
-#: L-BFGS) vs the default since (coasts read off the B-spline of the ballistic flow, extended L-BFGS system),
-#: on the same starts.
-COAST_DEFAULT = "before issue 22 (RK8 coasts 320 steps, L-BFGS Sherman–Morrison)"
+#: ``--coast``: the default (coasts integrated with RK8 at every evaluation, Sherman–Morrison L-BFGS) vs issue
+#: 22's faster pair (coasts read off the B-spline of the ballistic flow, extended L-BFGS system), same starts.
+COAST_DEFAULT = "default (RK8 coasts 320 steps, L-BFGS Sherman–Morrison)"
 COAST = {
     COAST_DEFAULT: _RK8_COASTS,
-    "issue 22 default (interpolated coasts 0.001 TU, L-BFGS extended system)": IpoptOptions(),
+    "issue 22 pair (interpolated coasts 0.001 TU, L-BFGS extended system)": _with(
+        IpoptOptions(), lbfgs_aug_solver="extended", transcription={"coast": "interpolant"}),
 }
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.
@@ -292,7 +292,7 @@ def main() -> None:
     ap.add_argument("--quasi-newton", action="store_true",
                     help="default L-BFGS vs the SR1 update and a short L-BFGS history, same starts")
     ap.add_argument("--coast", action="store_true",
-                    help="RK8 coasts vs interpolated coasts (the issue-22 default), same starts")
+                    help="the default vs interpolated coasts + extended L-BFGS system (issue 22), same starts")
     ap.add_argument("--max-wall-s", type=float, default=None,
                     help="raise the wall-time safety net (on a loaded machine it would cut solves short)")
     ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
