@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from processes import session_pids
 
 REPO = Path(__file__).resolve().parents[2]
 ALPHA = 0.42
@@ -186,19 +187,6 @@ def test_an_unwritable_output_folder_is_one_line_before_any_solve(where, tmp_pat
     assert blocker.read_text() == "a file, not a folder"
 
 
-def _session(sid: int) -> list[int]:
-    """Pids of the live processes of session ``sid`` (zombies aside)."""
-    pids = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[3]) == sid and fields[0] != "Z":
-            pids.append(int(stat.parent.name))
-    return pids
-
-
 @pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
 def test_ctrl_c_ends_design_with_one_line_and_no_process_left(tmp_path):
@@ -215,7 +203,7 @@ def test_ctrl_c_ends_design_with_one_line_and_no_process_left(tmp_path):
     )
     try:
         deadline = time.monotonic() + 300
-        while len(_session(proc.pid)) < 3:  # the command and its two solver workers: solving has begun
+        while len(session_pids(proc.pid)) < 3:  # the command and its two solver workers: solving has begun
             assert proc.poll() is None, proc.stderr.read()
             assert time.monotonic() < deadline, "no solver worker started"
             time.sleep(0.2)
@@ -223,11 +211,11 @@ def test_ctrl_c_ends_design_with_one_line_and_no_process_left(tmp_path):
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the foreground process group
         _, err = proc.communicate(timeout=60)
     finally:
-        for pid in _session(proc.pid):
+        for pid in session_pids(proc.pid):
             os.kill(pid, signal.SIGKILL)
     assert proc.returncode == 130
     assert [line for line in err.splitlines() if line.strip()] == ["amorgs design: interrupted"], err
-    assert _session(proc.pid) == []
+    assert session_pids(proc.pid) == []
 
 
 def test_an_unlisted_library_file_stops_design_naming_it(tmp_path):

@@ -20,6 +20,7 @@ import pytest
 import yaml
 
 from amorgs.data.tables import TIMING_COLUMNS
+from processes import session_pids
 
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
@@ -361,19 +362,6 @@ def test_killed_run_resumes_without_losing_or_duplicating_rows(tmp_path):
     assert statuses == ["FINISHED", "KILLED"]
 
 
-def _session(sid: int) -> list[int]:
-    """Pids of the live processes of session ``sid`` (zombies aside)."""
-    pids = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[3]) == sid and fields[0] != "Z":
-            pids.append(int(stat.parent.name))
-    return pids
-
-
 @pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
 def test_kill_9_of_snakemake_leaves_no_job_or_solver_and_the_rerun_one_finished_run_per_job(tmp_path):
@@ -390,18 +378,18 @@ def test_kill_9_of_snakemake_leaves_no_job_or_solver_and_the_rerun_one_finished_
         invocation = wd / "results" / "mlflow" / "invocation.json"
         while not invocation.exists() or not any(
             r.info.status == "RUNNING" for r in _runs(wd, cfg["mlflow"]["experiment"])["job"]
-        ) or len(_session(proc.pid)) < 4:  # snakemake, the job's shell, the job, its solver worker
+        ) or len(session_pids(proc.pid)) < 4:  # snakemake, the job's shell, the job, its solver worker
             assert proc.poll() is None, "the workflow ended before its job started"
             assert time.monotonic() < deadline, "no job run appeared"
             time.sleep(0.5)
         os.kill(proc.pid, signal.SIGKILL)  # Snakemake alone: its jobs are re-parented, not signalled
         proc.wait()
         deadline = time.monotonic() + 60
-        while _session(proc.pid) and time.monotonic() < deadline:
+        while session_pids(proc.pid) and time.monotonic() < deadline:
             time.sleep(0.5)
-        assert _session(proc.pid) == [], "a job or solver process outlived the killed workflow"
+        assert session_pids(proc.pid) == [], "a job or solver process outlived the killed workflow"
     finally:
-        for pid in _session(proc.pid):
+        for pid in session_pids(proc.pid):
             os.kill(pid, signal.SIGKILL)
     runs = _runs(wd, cfg["mlflow"]["experiment"])
     assert [r.info.status for r in runs["job"]] == ["KILLED"]  # the job closed its own run as it ended
