@@ -55,6 +55,7 @@ DOC = ROOT / "docs" / "performance.md"
 PREVIOUS = IpoptOptions(
     compile_flags="-O2",
     lbfgs_aug_solver="sherman-morrison",
+    lbfgs_memory=30,
     stall_window=0,
     transcription=TranscriptionOptions(coast="rk8", steps_per_segment=24, steps_per_coast=320,
                                        step_scaling_alpha=0.3, scale_down=False),
@@ -74,7 +75,7 @@ VARIANTS = {
     "+ compile flags -O3 -march=native -ffp-contract=off": _with(PREVIOUS, compile_flags="-O3 -march=native -ffp-contract=off"),
     "+ stall abort": _with(PREVIOUS, stall_window=300, stall_factor=0.5),
     "+ steps scaled down above α = 0.3": _with(PREVIOUS, transcription={"scale_down": True}),
-    "new default (compile flags only; abort off, steps unchanged)": _with(IpoptOptions(), lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"}),
+    "new default (compile flags only; abort off, steps unchanged)": _with(IpoptOptions(), lbfgs_aug_solver="sherman-morrison", lbfgs_memory=30, transcription={"coast": "rk8"}),
 }
 #: ``--compare``: the final old-vs-new table.
 COMPARE = {k: v for k, v in VARIANTS.items() if k.startswith(("previous", "new"))}
@@ -84,27 +85,29 @@ ABORT_PAIRS = {
 }
 #: ``--steps``: the default vs fewer steps at high α (same starts).
 STEPS_DEFAULT = "default (24/seg ×√(0.3/α) below 0.3, 320/coast)"
-#: The solver before issue 22: RK8 coasts and IPOPT's Sherman–Morrison L-BFGS solve (options_hash 42bf7b6dd566).
-_RK8_COASTS = _with(IpoptOptions(), lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"})
+#: The solver before issue 22: RK8 coasts, IPOPT's Sherman–Morrison L-BFGS solve, history 30 (options_hash
+#: 42bf7b6dd566, the library's generation 1).
+_RK8_COASTS = _with(IpoptOptions(), lbfgs_aug_solver="sherman-morrison", lbfgs_memory=30,
+                    transcription={"coast": "rk8"})
 STEPS = {
     STEPS_DEFAULT: _RK8_COASTS,
     "scale_down (⌈24·√(0.3/α)⌉/seg above 0.3 too)": _with(_RK8_COASTS, transcription={"scale_down": True}),
     "scale_down + 240/coast": _with(_RK8_COASTS, transcription={"scale_down": True, "steps_per_coast": 240,
                                                                 "coast_pieces": 8}),
 }
-#: ``--ipopt-screen``: IPOPT options that leave the NLP alone, one at a time on top of the default (a cheap
+#: ``--ipopt-screen``: IPOPT options that leave the NLP alone, one at a time on top of the generation-1 solver (a cheap
 #: screen on few starts; what survives it goes to a paired comparison such as ``--quasi-newton``).
 IPOPT_SCREEN = {
-    "default": IpoptOptions(),
-    "SR1 update": IpoptOptions(ipopt_options={"limited_memory_update_type": "sr1"}),
-    "L-BFGS history 6": IpoptOptions(lbfgs_memory=6),
-    "L-BFGS history 60": IpoptOptions(lbfgs_memory=60),
-    "limited_memory_initialization scalar2": IpoptOptions(ipopt_options={"limited_memory_initialization": "scalar2"}),
-    "mu_strategy monotone": IpoptOptions(ipopt_options={"mu_strategy": "monotone"}),
-    "nlp_scaling_method none": IpoptOptions(ipopt_options={"nlp_scaling_method": "none"}),
-    "mu_oracle quality-function": IpoptOptions(ipopt_options={"mu_oracle": "quality-function"}),
-    "no watchdog (watchdog_shortened_iter_trigger 0)": IpoptOptions(ipopt_options={"watchdog_shortened_iter_trigger": 0}),
-    "bound_push = bound_frac = 1e-6": IpoptOptions(ipopt_options={"bound_push": 1e-6, "bound_frac": 1e-6}),
+    "default": _RK8_COASTS,
+    "SR1 update": _with(_RK8_COASTS, ipopt_options={"limited_memory_update_type": "sr1"}),
+    "L-BFGS history 6": _with(_RK8_COASTS, lbfgs_memory=6),
+    "L-BFGS history 60": _with(_RK8_COASTS, lbfgs_memory=60),
+    "limited_memory_initialization scalar2": _with(_RK8_COASTS, ipopt_options={"limited_memory_initialization": "scalar2"}),
+    "mu_strategy monotone": _with(_RK8_COASTS, ipopt_options={"mu_strategy": "monotone"}),
+    "nlp_scaling_method none": _with(_RK8_COASTS, ipopt_options={"nlp_scaling_method": "none"}),
+    "mu_oracle quality-function": _with(_RK8_COASTS, ipopt_options={"mu_oracle": "quality-function"}),
+    "no watchdog (watchdog_shortened_iter_trigger 0)": _with(_RK8_COASTS, ipopt_options={"watchdog_shortened_iter_trigger": 0}),
+    "bound_push = bound_frac = 1e-6": _with(_RK8_COASTS, ipopt_options={"bound_push": 1e-6, "bound_frac": 1e-6}),
 }
 #: ``--quasi-newton``: the default L-BFGS (history 30) vs the two survivors of the screen, on the same starts.
 QN_DEFAULT = "default (L-BFGS, history 30)"

@@ -22,7 +22,6 @@ from amorgs.data.library import (
     CLIP_TOLERANCE,
     export_library,
     library_files,
-    manifest_identity,
     read_library,
     read_library_file,
     read_manifest,
@@ -37,12 +36,14 @@ LIBRARY_CONFIG = ROOT / "config" / "library.yaml"
 
 
 def _generation_1_config() -> Path:
-    """The library config with the solver of library generation 1 (RK8 coasts, Sherman–Morrison L-BFGS), so
+    """The library config with the solver of library generation 1 (RK8 coasts, Sherman–Morrison L-BFGS with
+    history 30), so
     that the committed generation-1 shards are this config's shards."""
     import yaml
 
     cfg = yaml.safe_load(LIBRARY_CONFIG.read_text())
-    cfg["problems"]["cr3bp"]["solver"].update(lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"})
+    cfg["problems"]["cr3bp"]["solver"].update(lbfgs_aug_solver="sherman-morrison", lbfgs_memory=30,
+                                              transcription={"coast": "rk8"})
     path = Path(tempfile.mkdtemp(prefix="amorgs-test-library-")) / "library.yaml"
     path.write_text(yaml.safe_dump(cfg))
     return path
@@ -53,10 +54,10 @@ CFG = load_config(CONFIG)
 
 
 def real_shards(tmp_path: Path, label: str = "0.500", n: int = 2) -> Path:
-    """The first ``n`` library shards of one α solved with the library config's current solver options
-    (shards 8, 9, …; batch 0 predates them), written as generate-rule shard tables under tmp/solutions."""
+    """The first ``n`` library shards of one α solved with generation 1's solver options (:data:`CFG`; shards
+    8, 9, …; batch 0 predates them), written as generate-rule shard tables under tmp/solutions."""
     df = read_library(LIBRARY, "cr3bp", label)
-    df = df[df["options_hash"] == manifest_identity(read_manifest(LIBRARY, "cr3bp"))["options_hash"]]
+    df = df[df["options_hash"] == CFG.problems.cr3bp.solver.digest()]
     out = tmp_path / "solutions"
     for k in sorted(df["shard"].unique())[:n]:
         path = out / f"alpha={label}" / f"shard-{k}.parquet"
@@ -432,25 +433,29 @@ def test_export_refuses_guesses_that_are_not_the_seeded_draw(tmp_path):
 
 
 def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(tmp_path):
-    """Generation 1 rows held: the library config with interpolated coasts (generation 2) may start generation 2; the
-    generation-1 solver with another option (another hash, same generation) is refused naming the key."""
+    """Generation 1 rows held (RK8 coasts, L-BFGS history 30): the library config with today's solver (generation
+    2) may start generation 2; the generation-1 solver with another option (another hash, same generation) is
+    refused naming the key."""
     from amorgs.data.library import _check_same_library, library_identity
-
-    manifest = {"files": [{"options_hashes": [CFG.problems.cr3bp.solver.digest()], "generation": 1,
-                           "exported": "2026-01-01", "file": "alpha=0.500/x.parquet"}],
-                "seed": CFG.seed, "starts_per_shard": 12, "config_file": str(CONFIG)}
     import yaml
 
-    fast = yaml.safe_load(LIBRARY_CONFIG.read_text())
-    fast["problems"]["cr3bp"]["solver"].update(transcription={"coast": "interpolant"})
-    (tmp_path / "fast.yaml").write_text(yaml.safe_dump(fast))
-    today = load_config(tmp_path / "fast.yaml")
+    def config_with(name, **solver):
+        cfg = yaml.safe_load(LIBRARY_CONFIG.read_text())
+        cfg["problems"]["cr3bp"]["solver"].update(solver)
+        (tmp_path / name).write_text(yaml.safe_dump(cfg))
+        return load_config(tmp_path / name)
+
+    rk8 = {"lbfgs_memory": 30, "transcription": {"coast": "rk8"}}
+    generation_1 = config_with("rk8.yaml", **rk8).problems.cr3bp.solver.digest()
+    assert generation_1 == "42bf7b6dd566"  # the hash of every generation-1 row in data/library
+    manifest = {"files": [{"options_hashes": [generation_1], "generation": 1,
+                           "exported": "2026-01-01", "file": "alpha=0.500/x.parquet"}],
+                "seed": CFG.seed, "starts_per_shard": 12, "config_file": str(LIBRARY_CONFIG)}
+    today = load_config(LIBRARY_CONFIG)
+    assert today.problems.cr3bp.solver.transcription.coast == "interpolant"
     _check_same_library(manifest, library_identity(today, "cr3bp"), today.problems.cr3bp.solver, LIBRARY_CONFIG,
                         tmp_path)
-    other = yaml.safe_load(CONFIG.read_text())
-    other["problems"]["cr3bp"]["solver"]["max_iter"] = 50
-    (tmp_path / "other.yaml").write_text(yaml.safe_dump(other))
-    cfg = load_config(tmp_path / "other.yaml")
+    other = config_with("other.yaml", max_iter=50, **rk8)
     with pytest.raises(InputError, match="options_hash"):
-        _check_same_library(manifest, library_identity(cfg, "cr3bp"), cfg.problems.cr3bp.solver,
+        _check_same_library(manifest, library_identity(other, "cr3bp"), other.problems.cr3bp.solver,
                             tmp_path / "other.yaml", tmp_path)

@@ -21,15 +21,14 @@ from amorgs.solvers.options import BfgsOptions, IpoptOptions, TranscriptionOptio
 HASH_RK8_DEFAULT_CONFIG = "42bf7b6dd566"  # cr3bp, config/default.yaml & library.yaml: max_iter 1000, max_wall_s 300.0
 HASH_RK8_SMOKE_CONFIG = "c6fd4f9f0bf5"  # cr3bp, config/smoke.yaml: max_iter 50, max_wall_s 60.0
 HASH_RK8_PAPER_CONFIG = "4fd020ee7912"  # cr3bp, config/paper.yaml: max_iter 1000, max_wall_s 500.0
-#: The same configs with issue 22's faster solver (interpolated coasts, extended L-BFGS system; not the
-#: default: warm starts fail more often, docs/performance.md).
-HASH_FAST_DEFAULT_CONFIG = "027348a77f01"
-HASH_FAST_SMOKE_CONFIG = "fbb976b18537"
-HASH_FAST_PAPER_CONFIG = "3e04f193959b"
-HASH_DEFAULT_CONFIG = HASH_RK8_DEFAULT_CONFIG
-FAST = {"lbfgs_aug_solver": "extended", "transcription": {"coast": "interpolant"}}
+#: The same configs with today's solver (issue 22: interpolated coasts, Sherman–Morrison L-BFGS, history 30).
+HASH_DEFAULT_CONFIG = "5589dd21c0ef"
+HASH_SMOKE_CONFIG = "cc78d27683b5"
+HASH_PAPER_CONFIG = "087b38db5767"
+#: config/library.yaml's solver: today's with L-BFGS history 6 (cold starts only; the library's generation 2).
+HASH_LIBRARY_CONFIG = "e2d640cc3c36"
 HASH_DEJONG_CONFIG = "817e088f0114"  # dejong, every config: gtol 1e-6, maxiter 500
-RK8 = {"lbfgs_aug_solver": "sherman-morrison", "transcription": {"coast": "rk8"}}
+RK8 = {"lbfgs_aug_solver": "sherman-morrison", "lbfgs_memory": 30, "transcription": {"coast": "rk8"}}
 
 
 @pytest.mark.parametrize(
@@ -38,10 +37,10 @@ RK8 = {"lbfgs_aug_solver": "sherman-morrison", "transcription": {"coast": "rk8"}
         (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0, **RK8}, HASH_RK8_DEFAULT_CONFIG),
         (IpoptOptions, {"max_iter": 50, "max_wall_s": 60.0, **RK8}, HASH_RK8_SMOKE_CONFIG),
         (IpoptOptions, {"max_iter": 1000, "max_wall_s": 500.0, **RK8}, HASH_RK8_PAPER_CONFIG),
-        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0}, HASH_RK8_DEFAULT_CONFIG),
-        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0, **FAST}, HASH_FAST_DEFAULT_CONFIG),
-        (IpoptOptions, {"max_iter": 50, "max_wall_s": 60.0, **FAST}, HASH_FAST_SMOKE_CONFIG),
-        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 500.0, **FAST}, HASH_FAST_PAPER_CONFIG),
+        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0}, HASH_DEFAULT_CONFIG),
+        (IpoptOptions, {"max_iter": 50, "max_wall_s": 60.0}, HASH_SMOKE_CONFIG),
+        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 500.0}, HASH_PAPER_CONFIG),
+        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0, "lbfgs_memory": 6}, HASH_LIBRARY_CONFIG),
         (BfgsOptions, {"gtol": 1.0e-6, "maxiter": 500}, HASH_DEJONG_CONFIG),
     ],
 )
@@ -78,7 +77,8 @@ def test_hash_changes_with_any_field():
         IpoptOptions(ipopt_options={"mu_strategy": "monotone"}),
         IpoptOptions(transcription=TranscriptionOptions(steps_per_segment=30)),
         IpoptOptions(lbfgs_aug_solver="extended"),
-        IpoptOptions(transcription=TranscriptionOptions(coast="interpolant")),
+        IpoptOptions(transcription=TranscriptionOptions(coast="rk8")),
+        IpoptOptions(lbfgs_memory=6),
     ]
     assert len({base.digest(), *(o.digest() for o in changed)}) == 1 + len(changed)
     assert BfgsOptions(maxiter=5).digest() != BfgsOptions().digest()
@@ -181,7 +181,7 @@ def test_usable_as_config_model_field_with_a_documented_schema():
         dejong: BfgsOptions
 
     cfg = Solvers.model_validate({"cr3bp": {"max_iter": 50, "max_wall_s": 60.0}, "dejong": {}})
-    assert cfg.cr3bp.digest() == HASH_RK8_SMOKE_CONFIG and cfg.dejong == BfgsOptions()
+    assert cfg.cr3bp.digest() == HASH_SMOKE_CONFIG and cfg.dejong == BfgsOptions()
     with pytest.raises(pydantic.ValidationError, match=r"cr3bp\.max_iters"):
         Solvers.model_validate({"cr3bp": {"max_iters": 50}, "dejong": {}})
     schema = Solvers.model_json_schema()

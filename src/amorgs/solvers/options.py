@@ -71,8 +71,7 @@ class TranscriptionOptions(_Options):
         "steps_per_coast fixed steps at every evaluation; 'interpolant' reads them off a cubic B-spline of the "
         "ballistic flow from the fixed boundary state, sampled every coast_grid_step TU (DOP853, rtol 1e-13) "
         "once when the NLP is built — the coasts start from fixed states, so the flow is a function of one "
-        "scalar each; ≈ 1.7× the verified solutions per core-hour, but warm starts from converged solutions "
-        "fail more often — not the default until that is understood, docs/performance.md)"))] = "rk8"
+        "scalar each (the library's generation 2; 'rk8' is generation 1; docs/performance.md)"))] = "interpolant"
     coast_grid_step: Annotated[float, Field(gt=0, le=0.1, description=(
         "'interpolant' coasts: spacing of the B-spline's samples of the ballistic flow (TU)"))] = 0.001
     steps_per_coast: Annotated[int, Field(ge=1, description=(
@@ -129,12 +128,14 @@ class IpoptOptions(_Options):
     hessian: Annotated[Literal["limited-memory", "exact"], Field(description=(
         "IPOPT hessian_approximation: L-BFGS ('limited-memory') or the exact Lagrangian Hessian"))] = "limited-memory"
     lbfgs_memory: Annotated[int, Field(ge=1, description=(
-        "L-BFGS history length in update pairs (IPOPT limited_memory_max_history)"))] = 30
+        "L-BFGS history length in update pairs (IPOPT limited_memory_max_history). 30 re-converges from near "
+        "a solution (warm starts); 6 is ≈ 1.4× faster from uniform starts but converges slowly near a "
+        "solution at low α, so only the library config (cold starts) uses it (docs/performance.md)"))] = 30
     lbfgs_aug_solver: Annotated[Literal["sherman-morrison", "extended"], Field(description=(
         "IPOPT limited_memory_aug_solver: how the L-BFGS low-rank term enters the linear system — "
         "'sherman-morrison' (IPOPT's default: 2 × history extra back-solves per factorisation) or 'extended' "
         "(the low-rank factors as extra rows of one sparse system; ≈ 3 ms less IPOPT work per iteration "
-        "here, docs/performance.md)"))] = "sherman-morrison"
+        "here, but re-solves from converged solutions fail far more often, docs/performance.md)"))] = "sherman-morrison"
     max_iter: Annotated[int, Field(ge=1, description=(
         "IPOPT iteration cap (iterations): the primary, deterministic limit"))] = 1000
     max_wall_s: Annotated[float, Field(gt=0, description=(
