@@ -29,10 +29,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
-from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_NAMES
-
-#: The arms that load models (the only ones a learning curve over data fractions applies to).
-LEARNED_SAMPLERS = tuple(s for s in SAMPLER_NAMES if NEEDS_MODELS[s])
+from amorgs.ablation.arms import LEARNED_SAMPLER_NAMES, SAMPLER_NAMES, get_arm
 from amorgs.alphas import alpha_label
 from amorgs.analysis.structure_params import StructureParams
 from amorgs.errors import ConfigError
@@ -257,7 +254,7 @@ class Ablation(Section):
     n_boot: PositiveInt
     break_even_solutions: tuple[PositiveInt, ...] = Field(
         description="high-quality solutions wanted per new α in the break-even table (none: no table)")
-    fraction_samplers: tuple[Literal[LEARNED_SAMPLERS], ...] = Field(  # type: ignore[valid-type]
+    fraction_samplers: tuple[Literal[LEARNED_SAMPLER_NAMES], ...] = Field(  # type: ignore[valid-type]
         description="learned arms run again with the models of every cr3bp_models.data_fractions (the "
                     "learning curve of the ablation's expected running time; none: no curve)")
 
@@ -309,7 +306,7 @@ class Config(Section):
         for key in ("cr3bp_models", "ablation"):
             if getattr(self, key).enabled and not cr3bp.alphas.test:
                 raise ValueError(f"{key}.enabled needs test α in problems.cr3bp.alphas.test")
-        learned = [s for s in self.ablation.samplers if NEEDS_MODELS[s]]
+        learned = [s for s in self.ablation.samplers if get_arm(s).learned]
         if self.ablation.enabled and learned and not self.cr3bp_models.enabled:
             raise ValueError(f"ablation.samplers {learned} need cr3bp_models.enabled: true")
         too_big = [c for c in self.ablation.iteration_caps if c > cr3bp.solver.max_iter]

@@ -16,6 +16,7 @@ import math
 import os
 import sys
 
+from amorgs.ablation.arms import ARMS, REUSE_ARM
 from amorgs.config import SCHEMA_PATH
 from amorgs.problems import PROBLEMS
 
@@ -237,10 +238,10 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--alpha", required=True, type=float, help="maximum thrust α in N, within [0.1, 1.0]")
     p.add_argument("-n", "--n", dest="n", required=True, type=int, help="number of solutions wanted (≥ 1)")
-    p.add_argument("--sampler", default="nearest_alpha",
-                   help="warm-start sampler (default nearest_alpha: library solutions of the nearest training α); "
-                        "also uniform, nearest_alpha_perturbed, and the learned amorgs, cvae_uniform_control, "
-                        "uniform_lstm_control, vanilla_cvae, gmm_lstm (need --models-dir)")
+    p.add_argument("--sampler", default=REUSE_ARM,
+                   help=f"warm-start sampler (default {REUSE_ARM}: library solutions of the nearest training α); "
+                        "also " + ", ".join(a.name for a in ARMS if not a.learned and a.name != REUSE_ARM)
+                        + ", and the learned " + ", ".join(a.name for a in ARMS if a.learned) + " (need --models-dir)")
     p.add_argument("--beta", type=float, default=415.0, help="β: minimum final fuel mass m_f in kg (default 415)")
     p.add_argument("--eta", type=float, default=0.02,
                    help="η of Eq. 12, dimensionless: solutions must differ by more than η in (τ_s/40, τ_i/15, τ_f/15) "

@@ -13,7 +13,7 @@ from pathlib import Path
 from snakemake_interface_executor_plugins.settings import DeploymentMethod
 
 from amorgs import layout, lifeline, steps
-from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, SAMPLER_NAMES
+from amorgs.ablation.arms import SAMPLER_NAMES
 from amorgs.config import load_workflow_config
 from amorgs.errors import ConfigError, InputError
 from amorgs.data.library import library_files as _library_files
@@ -120,11 +120,8 @@ def finish_tracking(status):
 
 
 def ablation_cell_inputs(wildcards, model_template=layout.CR3BP_MODEL):
-    """The checkpoints the {sampler} loads (none for uniform / nearest_alpha*) and, for the reuse baselines,
-    the filtered high-quality table (they draw from its training-α rows)."""
-    from amorgs.steps.ablation import cell_models
+    """What the {sampler}'s arm draws on: the checkpoints it loads and, if it needs it, the filtered
+    high-quality table (amorgs.steps.ablation.cell_inputs, from the table of arms)."""
+    from amorgs.steps.ablation import cell_inputs
 
-    inputs = {"models": cell_models(wildcards.sampler, model_template, wildcards)}
-    if wildcards.sampler in NEEDS_HIGH_QUALITY:
-        inputs["high_quality"] = layout.HIGH_QUALITY.format(problem="cr3bp")
-    return inputs
+    return cell_inputs(wildcards.sampler, model_template, wildcards)

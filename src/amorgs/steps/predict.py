@@ -35,6 +35,7 @@ def run_predict(job: Job, run) -> None:
     import numpy as np
     import pandas as pd
 
+    from amorgs.ablation.arms import build_sampler
     from amorgs.analysis.prediction import prediction_table
     from amorgs.data.io import write_json, write_parquet
     from amorgs.figures.prediction import (
@@ -44,7 +45,7 @@ def run_predict(job: Job, run) -> None:
         fig20_control_statistics,
     )
     from amorgs.models import cvae
-    from amorgs.models.samplers import CVAETimeMassUniformControl, build_sampler
+    from amorgs.models.samplers import CVAETimeMassUniformControl
     from amorgs.problems import get_problem
 
     s: PredictSettings = job.settings
