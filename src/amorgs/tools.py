@@ -30,6 +30,7 @@ EXAMPLES = {
     "check-outputs": "amorgs check-outputs --config config/smoke.yaml   # exit 0: complete; 1: missing or broken;\n"
     "                                                    # 3: complete but untracked in MLflow",
     "config-schema": "amorgs config-schema --write     # after changing src/amorgs/config.py",
+    "config-show": "amorgs config-show config/smoke.yaml     # what the smoke run uses, every key",
     "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
     "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
 }
@@ -173,6 +174,19 @@ def cmd_config_schema(args: argparse.Namespace) -> None:
         print(text, end="")
 
 
+def cmd_config_show(args: argparse.Namespace) -> None:
+    import yaml
+
+    from amorgs.config import deep_merge, from_mapping, read_yaml
+
+    merged: dict = {}
+    for path in args.configs:  # in order, as Snakemake merges several --configfile
+        merged = deep_merge(merged, read_yaml(path))
+    cfg = from_mapping(merged, " + ".join(args.configs) if args.configs else "defaults")
+    print(f"# effective config of {' + '.join(args.configs) or 'the typed defaults'}: hash {cfg.hash}")
+    print(yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False, allow_unicode=True), end="")
+
+
 def add_tools(sub: argparse._SubParsersAction) -> None:
     """Add every tool's subcommand to ``sub``."""
     p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library",
@@ -278,6 +292,11 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--write", action="store_true", help=f"write it to {SCHEMA_PATH}")
     p.add_argument("--check", action="store_true", help=f"exit 1 if {SCHEMA_PATH} is not the generated schema")
     p.set_defaults(func=cmd_config_schema)
+
+    p = sub.add_parser("config-show", help="print the effective config: the files' overrides merged over the defaults")
+    p.add_argument("configs", nargs="*", metavar="CONFIG",
+                   help="config files, merged in the order given (none: the typed defaults)")
+    p.set_defaults(func=cmd_config_show)
 
     p = sub.add_parser("reference-export", help="commit a finished run's tables, figures and summary with provenance")
     p.add_argument("--config", default=None, help="the config of the finished run (e.g. config/study.yaml)")

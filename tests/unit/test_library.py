@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from config_files import mapping
 
 from amorgs.config import load_config
 from amorgs.data.library import (
@@ -41,7 +42,7 @@ def _generation_1_config() -> Path:
     that the committed generation-1 shards are this config's shards."""
     import yaml
 
-    cfg = yaml.safe_load(LIBRARY_CONFIG.read_text())
+    cfg = mapping("library")
     cfg["problems"]["cr3bp"]["solver"].update(lbfgs_aug_solver="sherman-morrison", transcription={"coast": "rk8"})
     path = Path(tempfile.mkdtemp(prefix="amorgs-test-library-")) / "library.yaml"
     path.write_text(yaml.safe_dump(cfg))
@@ -98,8 +99,12 @@ def test_export_consolidates_shards_and_skips_held_ones(tmp_path):
     assert [f.name for f in files] == ["shards-00008-00009.parquet"]
     again = export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     assert again["files_added"] == 0 and again["rows"] == summary["rows"]
-    entry = read_manifest(lib, "cr3bp")["files"][0]
+    manifest = read_manifest(lib, "cr3bp")
+    entry = manifest["files"][0]
     assert entry["shards"] == [8, 9] and len(entry["sha256"]) == 64 and entry["options_hashes"]
+    # the config recorded as written and as it took effect (merged over the defaults), with its hash
+    assert manifest["config"] == CONFIG.read_text() and manifest["config_hash"] == CFG.hash
+    assert manifest["effective_config"] == CFG.model_dump(mode="json")
 
 
 def test_export_refuses_a_shard_of_another_config(tmp_path):
@@ -441,7 +446,7 @@ def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(
                 "seed": CFG.seed, "starts_per_shard": 12, "config_file": str(CONFIG)}
     import yaml
 
-    fast = yaml.safe_load(LIBRARY_CONFIG.read_text())
+    fast = mapping("library")
     fast["problems"]["cr3bp"]["solver"].update(transcription={"coast": "interpolant"})
     (tmp_path / "fast.yaml").write_text(yaml.safe_dump(fast))
     today = load_config(tmp_path / "fast.yaml")
@@ -454,3 +459,22 @@ def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(
     with pytest.raises(InputError, match="options_hash"):
         _check_same_library(manifest, library_identity(cfg, "cr3bp"), cfg.problems.cr3bp.solver,
                             tmp_path / "other.yaml", tmp_path)
+
+
+def test_the_shipped_library_config_is_the_committed_librarys(tmp_path):
+    """config/library.yaml holds only overrides of the typed defaults: merged over them it still has the
+    identity the committed manifest records (seed, starts per shard, solver-option hash), and `library-export
+    --config config/library.yaml` accepts the committed library with its own shards, leaving every byte as it
+    was."""
+    from amorgs.data.library import library_identity
+
+    assert library_identity(load_config(LIBRARY_CONFIG), "cr3bp") == manifest_identity(read_manifest(LIBRARY, "cr3bp"))
+    lib = tmp_path / "library"
+    shutil.copytree(LIBRARY / "cr3bp", lib / "cr3bp")
+    before = {p: p.read_bytes() for p in (lib / "cr3bp").rglob("*") if p.is_file()}
+    solutions = real_shards(tmp_path, n=2)
+    res = amorgs("library-export", "--solutions-dir", str(solutions), "--library-dir", str(lib),
+                 "--config", str(LIBRARY_CONFIG))
+    assert res.returncode == 0, res.stderr
+    assert "nothing new: the 2 shard(s)" in res.stdout and "identical" in res.stdout
+    assert {p: p.read_bytes() for p in (lib / "cr3bp").rglob("*") if p.is_file()} == before
