@@ -109,6 +109,10 @@ class Generate(Section):
     mem_mb: PositiveInt
     runtime_min: PositiveInt
 
+    def job(self) -> Job:
+        """The resources of one generate job: ``workers`` threads, ``mem_mb`` MB, ``runtime_min`` minutes."""
+        return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
+
 
 class Library(Section):
     """The versioned solution library: with ``enabled``, the merge of every α also takes the committed files
@@ -295,6 +299,10 @@ class Ablation(Section):
 
     _unique_lists = field_validator("samplers", "iteration_caps", "beta_sweep_kg", "break_even_solutions",
                                     "fraction_samplers")(_unique)
+
+    def job(self) -> Job:
+        """The resources of one cell job: ``workers`` threads, ``mem_mb`` MB, ``runtime_min`` minutes."""
+        return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
 
 
 class Config(Section):

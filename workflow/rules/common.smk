@@ -2,10 +2,12 @@
 # every rule runs, and the MLflow hooks of the Snakefile's onstart/onsuccess/onerror.  No rules here.
 #
 # Each workflow rule runs one step of amorgs.steps, of the same name. Its outputs come from the step
-# (step_outputs); its settings, the step's typed slice of the config, reach the job as JSON with the
-# wildcards and the named inputs and outputs Snakemake resolved (params.job); the same settings alone are
-# params.settings, which re-runs a job whose settings changed (step_params); and its command is STEP,
-# `python -m amorgs step --job ...`, which tags the job's MLflow run with those wildcards.  Rules declare only their inputs, log and resources.
+# (step_outputs); so do its threads, memory and wall-clock limit (step_threads, step_resources: the step's
+# slice of the config's resources); its settings, the step's typed slice of the config, reach the job as JSON
+# with the wildcards and the named inputs and outputs Snakemake resolved (params.job); the same settings alone
+# are params.settings, which re-runs a job whose settings changed (step_params); and its command is STEP,
+# `python -m amorgs step --job ...`, which tags the job's MLflow run with those wildcards.  A rule itself
+# declares only its inputs and its log.
 import os
 import sys
 from pathlib import Path
@@ -64,6 +66,19 @@ def step_job(name):
 
     job.step = name
     return job
+
+
+def step_threads(name):
+    """threads of the rule called ``name``: its step's resources for the job's wildcards (steps.job_resources)."""
+    return lambda wildcards: steps.job_resources(name, CFG, wildcards).threads
+
+
+def step_resources(name):
+    """resources of the rule called ``name``, mem_mb (MB) and runtime (minutes): its step's, as for threads."""
+    return {
+        "mem_mb": lambda wildcards: steps.job_resources(name, CFG, wildcards).mem_mb,
+        "runtime": lambda wildcards: steps.job_resources(name, CFG, wildcards).runtime_min,
+    }
 
 
 def step_params(name):

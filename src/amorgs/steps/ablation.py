@@ -18,7 +18,7 @@ from amorgs.config import Config, Section
 from amorgs.data.seeds import cell_seed
 from amorgs.errors import InputError
 from amorgs.solvers.options import IpoptOptions
-from amorgs.steps import Job, Step, Wildcards, once_if
+from amorgs.steps import Job, Step, Wildcards, once_if, resources_of
 from amorgs.steps.outputs import finite_metrics, use_agg, write_figures
 
 
@@ -218,17 +218,21 @@ STAGE = 7
 STEPS = (
     Step("ablation_cell", CellSettings, _cell_settings, run_cell, cell_jobs,
          lambda w: {"table": layout.ABLATION_CELL.format_map(w)},
+         resources=lambda cfg, w: cfg.ablation.job(),
          description="solve the guesses of one sampler at one test α → cell table"),
     Step("ablation_cell_replicate", CellSettings, _cell_settings, run_cell, replicate_cell_jobs,
          lambda w: {"table": layout.ABLATION_REPLICATE_CELL.format_map(w)},
+         resources=lambda cfg, w: cfg.ablation.job(),
          description="a cell with the models of an extra training seed"),
     Step("ablation_cell_fraction", CellSettings, _cell_settings, run_cell, fraction_cell_jobs,
          lambda w: {"table": layout.ABLATION_FRACTION_CELL.format_map(w)},
+         resources=lambda cfg, w: cfg.ablation.job(),
          description="a learned arm with models trained on a fraction of the data (learning curve)"),
     Step("ablation_report", ReportSettings, _report_settings, run_report, once_if("ablation"),
          lambda w: {"summary": layout.ABLATION_SUMMARY,
                     "tables": [layout.TABLE.format(name=n) for n in layout.ABLATION_TABLES],
                     "figures": [layout.FIGURE.format(name=n) for n in layout.ABLATION_FIGURES]},
+         resources=resources_of("figure"),
          report=("ablation", "CR3BP ablation"),
          description="Table 6, capped studies, coverage, rates, β sweep, aRT, anytime curves; Figs. 21–23"),
 )
