@@ -69,12 +69,12 @@ def step_job(name):
 
 
 def step_threads(name):
-    """threads of the rule called ``name``: its step's resources for the job's wildcards (steps.job_resources)."""
+    """threads of the rule called ``name``, from its step's resources for the job's wildcards (steps.job_resources)."""
     return lambda wildcards: steps.job_resources(name, CFG, wildcards).threads
 
 
 def step_resources(name):
-    """resources of the rule called ``name``, mem_mb (MB) and runtime (minutes): its step's, as for threads."""
+    """resources of the rule called ``name``, mem_mb (MB) and runtime (minutes), from its step as for threads."""
     return {
         "mem_mb": lambda wildcards: steps.job_resources(name, CFG, wildcards).mem_mb,
         "runtime": lambda wildcards: steps.job_resources(name, CFG, wildcards).runtime_min,
