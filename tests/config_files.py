@@ -17,9 +17,15 @@ def load(name: str) -> C.Config:
     return C.load_config(ROOT / "config" / f"{name}.yaml")
 
 
-def mapping(name: str = "smoke") -> dict:
-    """The raw mapping of ``config/<name>.yaml`` (to edit in a test)."""
+def overrides(name: str = "smoke") -> dict:
+    """The raw mapping of ``config/<name>.yaml``: only what it changes from the typed defaults."""
     return yaml.safe_load((ROOT / "config" / f"{name}.yaml").read_text())
+
+
+def mapping(name: str = "smoke") -> dict:
+    """The effective mapping of ``config/<name>.yaml`` (its overrides merged over the defaults: every key), to
+    edit in a test and write back as a complete config file."""
+    return C.effective_mapping(overrides(name))
 
 
 def write(tmp_path: Path, data: dict, name: str = "bad.yaml") -> Path:

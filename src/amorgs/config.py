@@ -1,18 +1,22 @@
-"""The workflow configuration: one typed model (pydantic) that is the schema.
+"""The workflow configuration: one typed model (pydantic) that is the schema and holds every default.
 
-A config file is the complete experiment: every key is required (except inside the solver sections, whose
-defaults live in :mod:`amorgs.solvers.options`, and ``cr3bp_analysis.params``, whose defaults live in
-:class:`amorgs.analysis.structure_params.StructureParams`), no other key is allowed, and no other file is
-merged under it.  The JSON Schema ``workflow/schemas/config.schema.json`` is *generated* from these models
-(``amorgs config-schema --write``; a test keeps it current), so types, ranges, enums and descriptions are
-written once, here.  Enums come from the registries: samplers from :mod:`amorgs.ablation.arms`, problems
-from :mod:`amorgs.problems`, presets from :mod:`amorgs.models.names`.
+The defaults of :class:`Config` are the main job (a plain ``snakemake``; the solver sections take theirs from
+:mod:`amorgs.solvers.options`, ``cr3bp_analysis.params`` from
+:class:`amorgs.analysis.structure_params.StructureParams`).  A config file holds only what its experiment
+changes: it is merged over the defaults (:func:`effective_mapping`) — nested mappings key by key, anything
+else (a list, a number, a string, null) replaces the default — and the merged mapping is validated.  No other
+key is allowed.  What runs, is hashed (:attr:`Config.hash`) and is recorded (MLflow, the library's and the
+models' manifests) is always that merged, *effective* config.  The JSON Schema
+``workflow/schemas/config.schema.json`` is *generated* from these models (``amorgs config-schema --write``; a
+test keeps it current), so types, ranges, enums, defaults and descriptions are written once, here.  Enums come
+from the registries: samplers from :mod:`amorgs.ablation.arms`, problems from :mod:`amorgs.problems`, presets
+from :mod:`amorgs.models.names`.
 
 Checking happens at load, before any job: the model (types, ranges, enums, unknown keys), then the
 cross-field rules (:meth:`Config._cross_field_rules`: α inside each problem's range and distinct at three
 decimals, stages enabled together, iteration caps ≤ ``max_iter``).  Every failure is one
 :class:`ConfigError` whose lines name the file and the dotted key, e.g.
-``config/smoke.yaml: problems.dejong.generate.startz: Extra inputs are not permitted``.
+``config/smoke.yaml: problems.dejong.generate.startz: unknown key``.
 
 α identity: :func:`amorgs.alphas.alpha_label` (three decimals, ``0.150``) in paths, wildcards and keys; the
 exact float behind each label is kept here and passed to the solver.
@@ -29,10 +33,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
-from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_NAMES
-
-#: The arms that load models (the only ones a learning curve over data fractions applies to).
-LEARNED_SAMPLERS = tuple(s for s in SAMPLER_NAMES if NEEDS_MODELS[s])
+from amorgs.ablation.arms import HEADLINE_ARM, LEARNED_SAMPLER_NAMES, SAMPLER_NAMES, get_arm
 from amorgs.alphas import alpha_label
 from amorgs.analysis.structure_params import StructureParams
 from amorgs.errors import ConfigError
@@ -42,7 +43,7 @@ from amorgs.solvers.options import BfgsOptions, IpoptOptions
 
 #: The generated JSON Schema, relative to the repository root (the working directory of workflow and CLI).
 SCHEMA_PATH = Path("workflow/schemas/config.schema.json")
-#: The config a plain ``snakemake`` (no ``--configfile``) runs.
+#: The config a plain ``snakemake`` (no ``--configfile``) runs: ``{}``, the typed defaults.
 DEFAULT_CONFIG = Path("config/default.yaml")
 
 PositiveInt = Annotated[int, Field(ge=1)]
@@ -53,7 +54,8 @@ Flag = StrictBool
 
 
 class Section(BaseModel):
-    """A config section: frozen, every field required unless it has a default, no unknown keys."""
+    """A config section: frozen, no unknown keys.  A field without a default here gets one from the section
+    that holds it (e.g. each problem's ``generate``), so that every key of :class:`Config` has a default."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -107,6 +109,10 @@ class Generate(Section):
     mem_mb: PositiveInt
     runtime_min: PositiveInt
 
+    def job(self) -> Job:
+        """The resources of one generate job: ``workers`` threads, ``mem_mb`` MB, ``runtime_min`` minutes."""
+        return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
+
 
 class Library(Section):
     """The versioned solution library: with ``enabled``, the merge of every α also takes the committed files
@@ -158,9 +164,34 @@ class Cr3bpConfig(ProblemConfig):
     filter: Cr3bpFilter
 
 
+#: Where the committed solution library lives (``problems.<name>.library.path``).
+LIBRARY_PATH = "data/library"
+
+
 class Problems(Section):
-    dejong: DejongConfig
-    cr3bp: Cr3bpConfig
+    """The problem families, each with the defaults of the main job."""
+
+    #: De Jong's 5th function rotated by α (spec §7, paper Sec. V.A): the grid iπ/100, i = 0 … 50, tested at
+    #: π/9, 2π/9, π/3, 4π/9; minima of the holes have J ≈ 1, stationary points on the plateau J ≈ 500.
+    dejong: DejongConfig = DejongConfig(
+        enabled=True,
+        alphas=Alphas(train=AlphaGrid(start=0.0, stop=1.5707963267948966, num=51),
+                      test=(0.3490658503988659, 0.6981317007977318, 1.0471975511965976, 1.3962634015954636)),
+        generate=Generate(shards=1, starts_per_shard=200, workers=1, mem_mb=2000, runtime_min=30),
+        library=Library(enabled=False, path=LIBRARY_PATH, max_rows_per_alpha=None),
+        solver=BfgsOptions(),
+        filter=DejongFilter(max_objective=10.0),
+    )
+    #: Low-thrust GTO → L1-halo transfer (spec §1–6, paper Sec. V.B): the paper's 12 training and 2 test α;
+    #: the whole library merged with a fresh slice of 8 starts per α (column ``source``); β of the paper.
+    cr3bp: Cr3bpConfig = Cr3bpConfig(
+        enabled=True,
+        alphas=Alphas(train=(0.1, 0.13, 0.16, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0), test=(0.15, 0.85)),
+        generate=Generate(shards=1, starts_per_shard=8, workers=2, mem_mb=4000, runtime_min=120),
+        library=Library(enabled=True, path=LIBRARY_PATH, max_rows_per_alpha=None),
+        solver=IpoptOptions(),
+        filter=Cr3bpFilter(min_final_mass_kg=415.0),
+    )
 
     def enabled(self) -> dict[str, ProblemConfig]:
         """Name → section of every enabled problem."""
@@ -171,20 +202,20 @@ class Mlflow(Section):
     """Mirror runs to MLflow in experiment ``experiment``; ``tracking_uri`` null means the SQLite store under
     ``results/mlflow``; the ``MLFLOW_TRACKING_URI`` environment variable overrides both."""
 
-    enabled: Flag
-    experiment: Annotated[str, Field(min_length=1)]
-    tracking_uri: Annotated[str, Field(min_length=1)] | None
+    enabled: Flag = True
+    experiment: Annotated[str, Field(min_length=1)] = "amorgs"
+    tracking_uri: Annotated[str, Field(min_length=1)] | None = None
 
 
 class Resources(Section):
     """Job resources of the rules other than generate and the ablation cells."""
 
-    merge: Job
-    filter: Job
-    train: Job
-    predict: Job
-    figure: Job
-    analyze: Job
+    merge: Job = Job(threads=1, mem_mb=2000, runtime_min=10)
+    filter: Job = Job(threads=1, mem_mb=4000, runtime_min=30)
+    train: Job = Job(threads=2, mem_mb=8000, runtime_min=240)
+    predict: Job = Job(threads=1, mem_mb=4000, runtime_min=30)
+    figure: Job = Job(threads=1, mem_mb=2000, runtime_min=10)
+    analyze: Job = Job(threads=1, mem_mb=4000, runtime_min=30)
 
 
 class DejongCVAE(Section):
@@ -192,21 +223,25 @@ class DejongCVAE(Section):
     ``learning_rate`` for ``epochs`` epochs of ``batch_size`` rows; ``seed`` fixes weights, shuffling and
     sampling; ``n_samples`` samples per test α scored against the true minima within ``radius`` (units of x)."""
 
-    enabled: Flag
-    preset: Literal[DEJONG_PRESETS]  # type: ignore[valid-type]
-    learning_rate: PositiveFloat
-    epochs: PositiveInt
-    batch_size: Annotated[int, Field(ge=2)]
-    seed: Seed
-    n_samples: PositiveInt
-    radius: PositiveFloat
+    enabled: Flag = True
+    #: Table 3 encoder/decoder, K = 2, 2-D latent, except a (64, 64) prior network: the full (512³) prior
+    #: trained worse.  Measured (tests/integration/test_dejong_amortized.py recipe): full batch, lr 5e-3,
+    #: 1500 epochs → 97.7–98.6 % within 3 units, 8/8 minima at all 4 test α; mini-batches of 64–512 with batch
+    #: norm reached only 50–97 %.
+    preset: Literal[DEJONG_PRESETS] = "small"  # type: ignore[valid-type]
+    learning_rate: PositiveFloat = 5.0e-3
+    epochs: PositiveInt = 1500
+    batch_size: Annotated[int, Field(ge=2)] = 16384
+    seed: Seed = 7
+    n_samples: PositiveInt = 1000  # per test α, as in Fig. 16b
+    radius: PositiveFloat = 3.0  # a sample within 3 units of a true minimum is a hit
 
 
 class Cr3bpAnalysis(Section):
     """The structure analysis of the CR3BP solutions (paper Sec. III.B, Figs. 3–13)."""
 
-    enabled: Flag
-    params: StructureParams = Field(description="StructureParams fields ({}: its defaults)")
+    enabled: Flag = True
+    params: StructureParams = Field(StructureParams(), description="StructureParams fields ({}: its defaults)")
 
 
 class Cr3bpModels(Section):
@@ -216,15 +251,15 @@ class Cr3bpModels(Section):
     serve the ablation's replicates; ``data_fractions``: extra GMM-CVAEs on these fractions (Fig. 18);
     ``n_samples``: samples per test α (Figs. 17–20)."""
 
-    enabled: Flag
-    preset: Literal[CR3BP_PRESETS]  # type: ignore[valid-type]
-    epochs: PositiveInt
-    batch_size: Annotated[int, Field(ge=2)]
-    learning_rate: PositiveFloat
-    seed: Seed
-    extra_seeds: tuple[Seed, ...]
-    data_fractions: tuple[Annotated[float, Field(gt=0, lt=1)], ...]
-    n_samples: PositiveInt
+    enabled: Flag = True
+    preset: Literal[CR3BP_PRESETS] = "small"  # type: ignore[valid-type]
+    epochs: PositiveInt = 500  # full batch, Adam 5e-3 on the CPU
+    batch_size: Annotated[int, Field(ge=2)] = 4096
+    learning_rate: PositiveFloat = 5.0e-3
+    seed: Seed = 11
+    extra_seeds: tuple[Seed, ...] = ()
+    data_fractions: tuple[Annotated[float, Field(gt=0, lt=1)], ...] = (0.1, 0.5)  # Fig. 18
+    n_samples: PositiveInt = 1000  # per test α, Figs. 17–20
 
     _unique_seeds = field_validator("extra_seeds", "data_fractions")(_unique)
 
@@ -243,43 +278,50 @@ class Ablation(Section):
     the high-quality solutions wanted per new α of the break-even table (issue 11 §5), ``fraction_samplers``
     the learned arms of the learning curve (issue 11 §4)."""
 
-    enabled: Flag
-    samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)]  # type: ignore[valid-type]
-    n_starts: PositiveInt
-    seed: Seed
-    workers: PositiveInt
-    mem_mb: PositiveInt
-    runtime_min: PositiveInt
-    perturbation_scale: Annotated[float, Field(ge=0)]
-    gmm_components: PositiveInt
-    iteration_caps: tuple[PositiveInt, ...]
-    beta_sweep_kg: tuple[float, ...]
-    n_boot: PositiveInt
+    enabled: Flag = True
+    #: Every arm of the table (:data:`amorgs.ablation.arms.ARMS`): the paper's five and the reuse baselines.
+    samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)] = SAMPLER_NAMES  # type: ignore[valid-type]
+    n_starts: PositiveInt = 24
+    seed: Seed = 13
+    workers: PositiveInt = 2
+    mem_mb: PositiveInt = 4000
+    runtime_min: PositiveInt = 60
+    perturbation_scale: Annotated[float, Field(ge=0)] = 0.02  # σ in the box-normalised space
+    gmm_components: PositiveInt = 5  # mixture components per training α
+    iteration_caps: tuple[PositiveInt, ...] = (25, 50, 100, 200, 400, 1000)  # fixed before the solves, ≤ max_iter
+    beta_sweep_kg: tuple[float, ...] = (425.0, 430.0, 435.0)  # the filter's β is always included
+    n_boot: PositiveInt = 2000
     break_even_solutions: tuple[PositiveInt, ...] = Field(
-        description="high-quality solutions wanted per new α in the break-even table (none: no table)")
-    fraction_samplers: tuple[Literal[LEARNED_SAMPLERS], ...] = Field(  # type: ignore[valid-type]
-        description="learned arms run again with the models of every cr3bp_models.data_fractions (the "
-                    "learning curve of the ablation's expected running time; none: no curve)")
+        (10, 100), description="high-quality solutions wanted per new α in the break-even table (none: no table)")
+    fraction_samplers: tuple[Literal[LEARNED_SAMPLER_NAMES], ...] = Field(  # type: ignore[valid-type]
+        (HEADLINE_ARM,), description="learned arms run again with the models of every cr3bp_models.data_fractions "
+                                 "(the learning curve of the ablation's expected running time; none: no curve)")
 
     _unique_lists = field_validator("samplers", "iteration_caps", "beta_sweep_kg", "break_even_solutions",
                                     "fraction_samplers")(_unique)
 
+    def job(self) -> Job:
+        """The resources of one cell job: ``workers`` threads, ``mem_mb`` MB, ``runtime_min`` minutes."""
+        return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
+
 
 class Config(Section):
-    """The whole workflow configuration; ``seed`` is the base of every derived seed."""
+    """The whole workflow configuration, every default that of the main job (2 cores: the README's time);
+    ``seed`` is the base of every derived seed."""
 
-    seed: Seed
-    mlflow: Mlflow
-    resources: Resources
-    problems: Problems
-    dejong_cvae: DejongCVAE
-    cr3bp_analysis: Cr3bpAnalysis
-    cr3bp_models: Cr3bpModels
-    ablation: Ablation
+    seed: Seed = 20240917
+    mlflow: Mlflow = Mlflow()
+    resources: Resources = Resources()
+    problems: Problems = Problems()
+    dejong_cvae: DejongCVAE = DejongCVAE()
+    cr3bp_analysis: Cr3bpAnalysis = Cr3bpAnalysis()
+    cr3bp_models: Cr3bpModels = Cr3bpModels()
+    ablation: Ablation = Ablation()
 
     @property
     def hash(self) -> str:
-        """12 hex digits of the SHA-256 of the canonical JSON of the whole config."""
+        """12 hex digits of the SHA-256 of the canonical JSON of the whole effective config (every key, the
+        defaults included: a file that spells out a default and one that leaves it out hash alike)."""
         text = json.dumps(self.model_dump(mode="json"), sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
@@ -309,7 +351,7 @@ class Config(Section):
         for key in ("cr3bp_models", "ablation"):
             if getattr(self, key).enabled and not cr3bp.alphas.test:
                 raise ValueError(f"{key}.enabled needs test α in problems.cr3bp.alphas.test")
-        learned = [s for s in self.ablation.samplers if NEEDS_MODELS[s]]
+        learned = [s for s in self.ablation.samplers if get_arm(s).learned]
         if self.ablation.enabled and learned and not self.cr3bp_models.enabled:
             raise ValueError(f"ablation.samplers {learned} need cr3bp_models.enabled: true")
         too_big = [c for c in self.ablation.iteration_caps if c > cr3bp.solver.max_iter]
@@ -323,7 +365,8 @@ class Config(Section):
 
 
 def read_yaml(path: str | Path) -> dict:
-    """Read one YAML config file; ``ConfigError`` if it is missing, malformed or not a mapping."""
+    """Read one YAML config file (overrides of the defaults; ``{}`` for none); ``ConfigError`` if it is
+    missing, malformed or not a mapping."""
     p = Path(path)
     try:
         data = yaml.safe_load(p.read_text())
@@ -332,8 +375,33 @@ def read_yaml(path: str | Path) -> dict:
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML: {exc}") from None
     if not isinstance(data, dict):
-        raise ConfigError(f"{p}: a config file must be a mapping of keys, got {type(data).__name__}")
+        raise ConfigError(f"{p}: a config file must be a mapping of keys ({{}} for the defaults), got "
+                          f"{type(data).__name__}")
     return data
+
+
+def deep_merge(base: dict, override: dict) -> dict:
+    """``override`` over ``base``, neither modified: a key whose value is a mapping on both sides merges
+    recursively; any other value (a list, a number, a string, null) replaces the one in ``base``."""
+    out = dict(base)
+    for key, value in override.items():
+        both = isinstance(value, dict) and isinstance(out.get(key), dict)
+        out[key] = deep_merge(out[key], value) if both else value
+    return out
+
+
+def defaults() -> dict:
+    """The typed defaults (the main job) as plain JSON data: every key of the config."""
+    return Config().model_dump(mode="json")
+
+
+def effective_mapping(*overrides: dict) -> dict:
+    """The config a run uses: the defaults with each of ``overrides`` merged over them in turn (:func:`deep_merge`),
+    unvalidated (unknown keys stay, for the validation to name)."""
+    out = defaults()
+    for override in overrides:
+        out = deep_merge(out, override)
+    return out
 
 
 def _error_lines(exc: ValidationError, source: str) -> list[str]:
@@ -357,33 +425,47 @@ def _error_lines(exc: ValidationError, source: str) -> list[str]:
 
 
 def from_mapping(mapping: dict, source: str = "config") -> Config:
-    """Validate ``mapping`` and build the typed :class:`Config`; one ``ConfigError`` lists every problem."""
+    """Merge ``mapping`` (overrides) over the defaults, validate, and build the typed :class:`Config`; one
+    ``ConfigError`` lists every problem, each line naming ``source`` and the dotted key."""
     try:
-        return Config.model_validate(mapping)
+        return Config.model_validate(effective_mapping(mapping))
     except ValidationError as exc:
         lines = _error_lines(exc, source)
         raise ConfigError(lines[0] if len(lines) == 1 else "invalid configuration\n  " + "\n  ".join(lines)) from None
 
 
 def load_config(path: str | Path) -> Config:
-    """Read, validate and build the config in one file."""
+    """The effective config of one file: its overrides merged over the defaults, validated."""
     return from_mapping(read_yaml(path), str(path))
 
 
 def load_workflow_config(config: dict, configfiles: list) -> Config:
-    """Validate Snakemake's ``config``: each of its ``configfiles`` alone (each must be a complete experiment,
-    so an error names the file), then the mapping Snakemake built (files merged in the order given, then any
-    ``--config`` overrides)."""
+    """Validate Snakemake's ``config``: each of its ``configfiles`` alone over the defaults (so an error names
+    the file), then the mapping Snakemake built — the files merged in the order given, then any ``--config``
+    overrides, with the same semantics as :func:`deep_merge` (Snakemake's ``update_config``) — over the
+    defaults."""
     for f in configfiles:
         load_config(f)
     return from_mapping(config, "merged config (" + " + ".join([*map(str, configfiles), "--config"]) + ")")
 
 
+def _optional(node):
+    """``node`` (a JSON Schema) with no key required anywhere: a config file holds overrides."""
+    if isinstance(node, dict):
+        return {k: _optional(v) for k, v in node.items() if k != "required"}
+    if isinstance(node, list):
+        return [_optional(v) for v in node]
+    return node
+
+
 def json_schema() -> dict:
-    """The JSON Schema (draft 2020-12) of a config file, generated from :class:`Config`."""
-    schema = Config.model_json_schema()
+    """The JSON Schema (draft 2020-12) of a config file, generated from :class:`Config`: types, ranges, enums,
+    defaults; no key is required, since a file holds only what it changes from the defaults."""
+    schema = _optional(Config.model_json_schema())
     return {"$schema": "https://json-schema.org/draft/2020-12/schema",
-            "$comment": "GENERATED from src/amorgs/config.py by `amorgs config-schema --write`; do not edit.",
+            "$comment": "GENERATED from src/amorgs/config.py by `amorgs config-schema --write`; do not edit. A config "
+                        "file holds overrides of the defaults: mappings merge into them key by key, anything else "
+                        "(a list, a number, a string, null) replaces the default.",
             **schema}
 
 

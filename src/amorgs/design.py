@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from amorgs.ablation.arms import REUSE_ARM
 from amorgs.alphas import alpha_label
 from amorgs.config import ConfigError
 from amorgs.errors import InputError
@@ -41,7 +42,7 @@ from amorgs.solvers.options import IpoptOptions
 
 PROBLEM = "cr3bp"
 #: Defaults of ``amorgs design`` (see :class:`DesignRequest`).
-DEFAULT_SAMPLER = "nearest_alpha"
+DEFAULT_SAMPLER = REUSE_ARM  # library solutions of the nearest training α
 DEFAULT_LIBRARY_DIR = "data/library"
 DEFAULT_MODELS_DIR = "data/models/cr3bp"
 DEFAULT_CONFIG = "config/default.yaml"
@@ -177,27 +178,28 @@ def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_k
 
 def make_sampler(request: DesignRequest, cfg, problem):
     """The requested sampler and a provenance dict; missing inputs raise :class:`InputError` naming the file."""
-    from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS
-    from amorgs.models.samplers import CHECKPOINTS, build_sampler, nearest_training_alpha
+    from amorgs.ablation.arms import build_sampler, get_arm
+    from amorgs.models.samplers import CHECKPOINTS, nearest_training_alpha
 
+    arm = get_arm(request.sampler)
     section = cfg.problems.cr3bp
     train = tuple(section.alphas.train_values())
     info: dict = {"sampler": request.sampler}
     models_dir = None
-    if NEEDS_MODELS[request.sampler]:
+    if arm.models:
         models_dir = Path(request.models_dir)
-        for model in NEEDS_MODELS[request.sampler]:
+        for model in arm.models:
             path = models_dir / CHECKPOINTS[model]
             if not path.is_file():
                 raise InputError(f"{path}: model checkpoint not found (--models-dir {request.models_dir}; "
-                                 f"sampler {request.sampler} needs {', '.join(NEEDS_MODELS[request.sampler])})")
+                                 f"sampler {request.sampler} needs {', '.join(arm.models)})")
         from amorgs.models.shipped import verify_models
 
-        shipped = verify_models(models_dir, tuple(CHECKPOINTS[m] for m in NEEDS_MODELS[request.sampler]))
+        shipped = verify_models(models_dir, tuple(CHECKPOINTS[m] for m in arm.models))
         if shipped is not None:
             info["models_git_commit"] = shipped["git_commit"]
     hq = None
-    if request.sampler in NEEDS_HIGH_QUALITY:
+    if arm.high_quality:
         hq = library_high_quality(request.library_dir, train, section.filter.min_final_mass_kg)
         info["library_seed_rows"] = int(len(hq))
     try:

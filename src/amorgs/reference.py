@@ -6,9 +6,11 @@ Layout (paths keep their place under ``results/``)::
 
     reference/<name>/tables/…, figures/…, cr3bp/ablation/summary.json, cr3bp/predictions/metrics.json
     reference/<name>/provenance.json, README.md (what the run was, how to regenerate and check it)
+    reference/<name>/config.yaml (the config file the run read, verbatim: its SHA-256 is ``config_sha256``)
 
 ``provenance.json``: every exported file (SHA-256, bytes); the config (file, SHA-256 of the file, the config
-hash MLflow records); the run's git commit and whether its tracked files were modified; package versions; the
+hash MLflow records — a config file holds overrides of the typed defaults, so the test that the shipped config
+still describes the run compares the *effective* configs of the shipped file and of ``config.yaml``); the run's git commit and whether its tracked files were modified; package versions; the
 library the run read (manifest SHA-256, rows, the CPU-hours that made it); the CPU-hours the run itself spent,
 per rule (solves: the ``cpu_s`` column of every solve table; training: ``train_cpu_s`` of every training
 report); and every solve table the tables were computed from (rows, SHA-256 — the tables themselves are not
@@ -36,6 +38,8 @@ from amorgs.tracking import git_state, package_versions
 
 MANIFEST = "provenance.json"
 README = "README.md"
+#: The run's config file, copied verbatim.
+CONFIG_COPY = "config.yaml"
 #: Rules whose named outputs are the reference result (small: tables, figures, summaries).
 EXPORTED_OUTPUTS = {"ablation_report": ("summary", "tables", "figures"), "predict_cr3bp": ("metrics", "figures")}
 #: Rules that solve: their ``table`` output has one row per solve with its ``cpu_s``.
@@ -69,7 +73,9 @@ def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | P
                     shutil.copyfile(run / path, tmp)
                 files.append({"file": _relative(path), "rule": rule, "sha256": sha256_file(target),
                               "bytes": target.stat().st_size})
-    listed = {f["file"] for f in files} | {MANIFEST, README}
+    with atomic_path(dst / CONFIG_COPY) as tmp:
+        shutil.copyfile(run / config_file, tmp)
+    listed = {f["file"] for f in files} | {MANIFEST, README, CONFIG_COPY}
     for stale in [p for p in dst.rglob("*") if p.is_file() and p.relative_to(dst).as_posix() not in listed]:
         stale.unlink()
 
@@ -151,8 +157,9 @@ def _readme(manifest: dict, dest: Path) -> str:
 
 
 def verify_reference(dest: str | Path) -> dict:
-    """Check every file listed in ``dest/provenance.json`` against its SHA-256; returns the manifest, raises
-    ``InputError`` naming the first file that is missing or differs."""
+    """Check every file listed in ``dest/provenance.json`` against its SHA-256, and the run's config copy
+    (:data:`CONFIG_COPY`) against ``config_sha256``; returns the manifest, raises ``InputError`` naming the first
+    file that is missing or differs."""
     dst = Path(dest)
     manifest_path = dst / MANIFEST
     if not manifest_path.is_file():
@@ -164,4 +171,8 @@ def verify_reference(dest: str | Path) -> dict:
             raise InputError(f"{path}: listed in {manifest_path} but missing")
         if sha256_file(path) != entry["sha256"]:
             raise InputError(f"{path}: SHA-256 differs from {manifest_path}")
+    config = dst / CONFIG_COPY
+    if not config.is_file() or sha256_file(config) != manifest["config_sha256"]:
+        raise InputError(f"{config}: {'differs from' if config.is_file() else 'missing, named in'} the "
+                         f"config_sha256 of {manifest_path}")
     return manifest

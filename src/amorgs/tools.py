@@ -16,6 +16,7 @@ import math
 import os
 import sys
 
+from amorgs.ablation.arms import ARMS, REUSE_ARM
 from amorgs.config import SCHEMA_PATH
 from amorgs.problems import PROBLEMS
 
@@ -29,6 +30,7 @@ EXAMPLES = {
     "check-outputs": "amorgs check-outputs --config config/smoke.yaml   # exit 0: complete; 1: missing or broken;\n"
     "                                                    # 3: complete but untracked in MLflow",
     "config-schema": "amorgs config-schema --write     # after changing src/amorgs/config.py",
+    "config-show": "amorgs config-show config/smoke.yaml     # what the smoke run uses, every key",
     "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
     "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
 }
@@ -172,6 +174,19 @@ def cmd_config_schema(args: argparse.Namespace) -> None:
         print(text, end="")
 
 
+def cmd_config_show(args: argparse.Namespace) -> None:
+    import yaml
+
+    from amorgs.config import deep_merge, from_mapping, read_yaml
+
+    merged: dict = {}
+    for path in args.configs:  # in order, as Snakemake merges several --configfile
+        merged = deep_merge(merged, read_yaml(path))
+    cfg = from_mapping(merged, " + ".join(args.configs) if args.configs else "defaults")
+    print(f"# effective config of {' + '.join(args.configs) or 'the typed defaults'}: hash {cfg.hash}")
+    print(yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False, allow_unicode=True), end="")
+
+
 def add_tools(sub: argparse._SubParsersAction) -> None:
     """Add every tool's subcommand to ``sub``."""
     p = sub.add_parser("library-export", help="check finished library-config shards and add them to the library",
@@ -237,10 +252,10 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--alpha", required=True, type=float, help="maximum thrust α in N, within [0.1, 1.0]")
     p.add_argument("-n", "--n", dest="n", required=True, type=int, help="number of solutions wanted (≥ 1)")
-    p.add_argument("--sampler", default="nearest_alpha",
-                   help="warm-start sampler (default nearest_alpha: library solutions of the nearest training α); "
-                        "also uniform, nearest_alpha_perturbed, and the learned amorgs, cvae_uniform_control, "
-                        "uniform_lstm_control, vanilla_cvae, gmm_lstm (need --models-dir)")
+    p.add_argument("--sampler", default=REUSE_ARM,
+                   help=f"warm-start sampler (default {REUSE_ARM}: library solutions of the nearest training α); "
+                        "also " + ", ".join(a.name for a in ARMS if not a.learned and a.name != REUSE_ARM)
+                        + ", and the learned " + ", ".join(a.name for a in ARMS if a.learned) + " (need --models-dir)")
     p.add_argument("--beta", type=float, default=415.0, help="β: minimum final fuel mass m_f in kg (default 415)")
     p.add_argument("--eta", type=float, default=0.02,
                    help="η of Eq. 12, dimensionless: solutions must differ by more than η in (τ_s/40, τ_i/15, τ_f/15) "
@@ -277,6 +292,11 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--write", action="store_true", help=f"write it to {SCHEMA_PATH}")
     p.add_argument("--check", action="store_true", help=f"exit 1 if {SCHEMA_PATH} is not the generated schema")
     p.set_defaults(func=cmd_config_schema)
+
+    p = sub.add_parser("config-show", help="print the effective config: the files' overrides merged over the defaults")
+    p.add_argument("configs", nargs="*", metavar="CONFIG",
+                   help="config files, merged in the order given (none: the typed defaults)")
+    p.set_defaults(func=cmd_config_show)
 
     p = sub.add_parser("reference-export", help="commit a finished run's tables, figures and summary with provenance")
     p.add_argument("--config", default=None, help="the config of the finished run (e.g. config/study.yaml)")

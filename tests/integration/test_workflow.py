@@ -40,7 +40,10 @@ def workdir(tmp_path: Path, config: dict | None = None, name: str = "wf") -> Pat
 
 
 def smoke_config() -> dict:
-    return yaml.safe_load((ROOT / "config" / "smoke.yaml").read_text())
+    """The effective smoke config, every key (config/smoke.yaml merged over the defaults), to edit."""
+    from config_files import mapping
+
+    return mapping("smoke")
 
 
 def snakemake(wd: Path, *args: str, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -251,7 +254,9 @@ def _check_reference_export(wd: Path, ref: Path, cfg) -> None:
     files = {f["file"] for f in manifest["files"]}
     assert {"tables/table6.md", "tables/ablation_ert.csv", "cr3bp/ablation/summary.json",
             "cr3bp/predictions/metrics.json", "figures/fig22_iteration_capped.png"} <= files
-    assert files == {p.relative_to(ref).as_posix() for p in ref.rglob("*") if p.is_file()} - {"provenance.json", "README.md"}
+    assert files == {p.relative_to(ref).as_posix() for p in ref.rglob("*") if p.is_file()} - {
+        "provenance.json", "README.md", "config.yaml"}
+    assert (ref / "config.yaml").read_bytes() == (wd / "config" / "smoke.yaml").read_bytes()
     assert "config/smoke.yaml" in (ref / "README.md").read_text()
     assert (ref / "tables" / "table6.md").read_bytes() == (wd / "results" / "tables" / "table6.md").read_bytes()
     cpu = manifest["cpu_hours"]

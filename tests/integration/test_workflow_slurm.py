@@ -270,7 +270,9 @@ def test_library_grow_runs_its_batch_through_the_cluster_profile(cluster, tmp_pa
     shard an sbatch job, then exported into the library."""
     from amorgs.data.library import read_manifest
 
-    cfg = yaml.safe_load((ROOT / "config" / "library.yaml").read_text())
+    from config_files import mapping
+
+    cfg = mapping("library")
     cfg["mlflow"]["enabled"] = False
     cfg["problems"]["dejong"]["enabled"] = cfg["dejong_cvae"]["enabled"] = False
     cfg["problems"]["cr3bp"]["alphas"] = {"train": [0.6], "test": [0.9]}

@@ -18,7 +18,11 @@ import pandas as pd
 from amorgs.problems.cr3bp.transcription import N_SEGMENTS, variable_names
 
 
-def synthetic_hq(n: int, alphas: tuple[float, ...] = (0.1, 0.4, 0.7, 1.0), seed: int = 0) -> pd.DataFrame:
+#: The α of :func:`synthetic_hq` by default (the "training α" of the tests that use it).
+TRAIN_ALPHAS = (0.1, 0.4, 0.7, 1.0)
+
+
+def synthetic_hq(n: int, alphas: tuple[float, ...] = TRAIN_ALPHAS, seed: int = 0) -> pd.DataFrame:
     rng = np.random.default_rng(seed)
     alpha = rng.choice(np.asarray(alphas, float), size=n)
     tau_s = 6.0 + 20.0 * alpha + rng.normal(0.0, 0.3, n)

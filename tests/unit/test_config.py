@@ -6,7 +6,7 @@ import json
 import math
 
 import pytest
-from config_files import CONFIGS, ROOT, load, mapping, write
+from config_files import CONFIGS, ROOT, load, mapping, overrides, write
 
 from amorgs import config as C
 from amorgs import steps
@@ -49,18 +49,79 @@ def _error(tmp_path, data) -> str:
 
 
 def test_every_problem_is_one_line_naming_file_and_key(tmp_path):
-    data = mapping()
+    data = overrides()
     data["problems"]["dejong"]["generate"]["startz_per_shard"] = 3
     data["dejong_cvae"]["epochs"] = "many"
-    del data["mlflow"]["experiment"]
     data["sed"] = data.pop("seed")
+    data["problems"]["cr3bp"]["alphas"]["train"] = {"num": 3}  # a grid needs start and stop: a list is the default
     lines = _error(tmp_path, data).splitlines()[1:]
-    assert len(lines) == 5
     msg = "\n".join(lines)
     assert "bad.yaml: problems.dejong.generate.startz_per_shard: unknown key" in msg
     assert "bad.yaml: dejong_cvae.epochs: Input should be a valid integer" in msg and "(got 'many')" in msg
-    assert "bad.yaml: mlflow.experiment: required key is missing" in msg
-    assert "bad.yaml: sed: unknown key" in msg and "bad.yaml: seed: required key is missing" in msg
+    assert "bad.yaml: sed: unknown key" in msg
+    assert "bad.yaml: problems.cr3bp.alphas.train.start: required key is missing" in msg
+    assert "bad.yaml: problems.cr3bp.alphas.train.stop: required key is missing" in msg
+    assert len(lines) == 6 and "seed" not in msg.replace("sed", "")  # a key left out takes its default
+
+
+def test_the_defaults_are_the_main_job_and_default_yaml_changes_nothing():
+    assert overrides("default") == {}
+    assert load("default") == C.Config() == C.from_mapping({})
+    assert C.defaults() == C.Config().model_dump(mode="json")
+    assert load("default").ablation.samplers == C.Config().ablation.samplers  # every arm of the table
+
+
+def test_overrides_merge_into_the_defaults_mappings_by_key_lists_replaced():
+    base = {"a": {"b": 1, "c": [1, 2], "d": {"e": 1, "f": 2}}, "g": [3], "h": {"i": 1}}
+    out = C.deep_merge(base, {"a": {"c": [9], "d": {"f": 5}}, "g": {"x": 1}, "h": None, "new": 1})
+    assert out == {"a": {"b": 1, "c": [9], "d": {"e": 1, "f": 5}}, "g": {"x": 1}, "h": None, "new": 1}
+    assert base == {"a": {"b": 1, "c": [1, 2], "d": {"e": 1, "f": 2}}, "g": [3], "h": {"i": 1}}  # untouched
+    smoke = load("smoke")
+    # a nested mapping: one key of the De Jong grid changed, the others kept from the default grid
+    assert smoke.problems.dejong.alphas.train.values() == pytest.approx((0.0, math.pi / 4, math.pi / 2), abs=1e-15)
+    assert smoke.problems.dejong.alphas.test == C.Config().problems.dejong.alphas.test
+    # a list replaces the default; a key the file leaves out keeps it
+    assert smoke.problems.cr3bp.alphas.train_values() == (0.7, 0.8, 0.9)
+    assert smoke.problems.cr3bp.solver.tol == C.Config().problems.cr3bp.solver.tol
+    assert smoke.resources.merge.threads == C.Config().resources.merge.threads
+
+
+def _leaves(node: dict, prefix: str = ""):
+    for key, value in node.items():
+        if isinstance(value, dict) and value:
+            yield from _leaves(value, f"{prefix}{key}.")
+        else:
+            yield f"{prefix}{key}", value
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+def test_a_shipped_config_holds_only_what_it_changes(name):
+    """Every key a shipped file sets differs from its default (no copies of the defaults to keep in step)."""
+    defaults = C.defaults()
+    for key, value in _leaves(overrides(name)):
+        node = defaults
+        for part in key.split("."):
+            node = node[part]
+        assert value != node, f"config/{name}.yaml: {key}: {value!r} is the default"
+
+
+def test_snakemake_merges_files_and_overrides_as_the_loader_does(tmp_path):
+    """The workflow validates each --configfile over the defaults (naming the file), then Snakemake's merge of
+    them and of --config (update_config: mappings by key, lists replaced) over the defaults."""
+    from snakemake.utils import update_config
+
+    extra = write(tmp_path, {"ablation": {"n_starts": 5}, "problems": {"cr3bp": {"alphas": {"test": [0.85]}}}},
+                  "extra.yaml")
+    merged = overrides("smoke")
+    update_config(merged, overrides_of := C.read_yaml(extra))
+    update_config(merged, {"seed": 3})
+    cfg = C.load_workflow_config(merged, [str(ROOT / "config" / "smoke.yaml"), str(extra)])
+    assert cfg == C.from_mapping(C.deep_merge(C.deep_merge(overrides("smoke"), overrides_of), {"seed": 3}))
+    assert (cfg.seed, cfg.ablation.n_starts, cfg.problems.cr3bp.alphas.test) == (3, 5, (0.85,))
+    assert cfg.ablation.workers == load("smoke").ablation.workers
+    bad = write(tmp_path, {"ablation": {"n_startz": 5}}, "bad.yaml")
+    with pytest.raises(C.ConfigError, match=r"bad\.yaml: ablation\.n_startz: unknown key"):
+        C.load_workflow_config({}, [str(bad)])
 
 
 @pytest.mark.parametrize(
@@ -132,6 +193,22 @@ def test_hash_is_stable_and_sensitive():
     changed = mapping()
     changed["seed"] += 1
     assert C.from_mapping(changed).hash != a.hash
+    # the hash is the effective config's: the overrides alone, or every key spelled out, hash alike
+    assert C.from_mapping(overrides()).hash == a.hash == load("smoke").hash
+    assert C.from_mapping({}).hash == C.from_mapping(C.defaults()).hash == load("default").hash
+
+
+#: The hashes of the shipped configs, pinned: a change to a default or a shipped file changes them, and must
+#: be deliberate.  When the configs became overrides (issue 24) they kept their hashes (54ec484af246,
+#: f525fd3bb34c, 2fb02d3f87c6, c1e2323bc951, 0f7cc1375afe); these are after the default solver became the
+#: interpolated-coast one (issue 22), which changes every effective config's solver options.
+HASHES = {"default": "52ce1f44c54d", "smoke": "f60e6e4819b2", "study": "14008f6cb339",
+          "study-paper": "214116ab497f", "paper": "ee4918b2a606"}
+
+
+@pytest.mark.parametrize("name", HASHES)
+def test_a_config_rewritten_as_overrides_kept_its_hash(name):
+    assert load(name).hash == HASHES[name]
 
 
 def test_alpha_label_is_fixed_width():
@@ -154,16 +231,20 @@ def test_schema_enums_and_ranges_come_from_the_registries():
     assert tuple(defs["Ablation"]["properties"]["samplers"]["items"]["enum"]) == SAMPLER_NAMES
     assert tuple(defs["Cr3bpModels"]["properties"]["preset"]["enum"]) == CR3BP_PRESETS
     assert schema["additionalProperties"] is False
-    assert set(schema["required"]) == set(C.Config.model_fields)
+    assert "required" not in json.dumps(schema)  # a file holds overrides: every key has a default
+    assert schema["properties"]["seed"]["default"] == C.Config().seed
 
 
 def test_every_shipped_config_validates_against_the_generated_schema():
-    """The JSON Schema is usable on its own (editors, other tools): every shipped config passes it."""
+    """The JSON Schema is usable on its own (editors, other tools): every shipped config passes it, as the
+    overrides it is and merged over the defaults; an unknown key fails it."""
     import jsonschema
 
-    schema = json.loads(C.schema_text())
+    validator = jsonschema.Draft202012Validator(json.loads(C.schema_text()))
     for name in CONFIGS:
-        jsonschema.Draft202012Validator(schema).validate(mapping(name))
+        validator.validate(overrides(name))
+        validator.validate(mapping(name))
+    assert not validator.is_valid({"ablation": {"n_startz": 3}})
 
 
 def test_jobs_and_targets_follow_the_enabled_stages(tmp_path):

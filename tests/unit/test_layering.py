@@ -47,11 +47,6 @@ LAYERS = (
     ("amorgs.steps", "amorgs.design", "amorgs.checks", "amorgs.reference"),
     ("amorgs.tools", "amorgs.library_grow", "amorgs.cli", "amorgs.__main__", "amorgs"),
 )
-#: Upward imports still to be cut (issue 24 §3), each (importer, imported package): the check fails on any
-#: other upward import, and on an entry here that no longer occurs (remove it when its link is cut).
-KNOWN_UPWARD = (
-    ("amorgs.models.samplers", "amorgs.ablation.arms"),  # the arm names and needs: item 1's one table of arms
-)
 
 #: Only the top layer may import the command line and the workflow steps: the command line itself, the steps,
 #: ``python -m amorgs``, ``amorgs check-outputs`` (:mod:`amorgs.checks`), which verifies what the steps declare,
@@ -123,8 +118,7 @@ def upward_imports(modules: dict[str, set[str]]) -> set[tuple[str, str]]:
             parts = name.split(".")
             target = next(".".join(parts[:k]) for k in range(2, len(parts) + 1)
                           if layer_of(".".join(parts[:k])) == layer_of(name))
-            known = next((p for m, p in KNOWN_UPWARD if m == module and _within(name, p)), None)
-            found.add((module, known or target))
+            found.add((module, target))
     return found
 
 
@@ -140,13 +134,12 @@ def test_no_module_imports_upward():
 
 
 def test_every_module_imports_only_its_own_layer_and_those_below():
-    """The declared order of :data:`LAYERS`; the links of :data:`KNOWN_UPWARD` are the only exceptions left."""
+    """The declared order of :data:`LAYERS`, without exceptions (the last links, issue 24 §1 and §3, are cut)."""
     modules = package_imports()
     for module in modules:
         layer_of(module)  # every module has a layer
     found = upward_imports(modules)
-    assert sorted(found - set(KNOWN_UPWARD)) == [], "upward imports (importer, imported)"
-    assert sorted(set(KNOWN_UPWARD) - found) == [], "links cut: remove them from KNOWN_UPWARD"
+    assert sorted(found) == [], "upward imports (importer, imported)"
 
 
 @pytest.mark.parametrize("module, source, imported", [

@@ -16,12 +16,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from config_files import mapping
 
 from amorgs.config import load_config
 from amorgs.data.library import (
     CLIP_TOLERANCE,
     export_library,
     library_files,
+    manifest_identity,
     read_library,
     read_library_file,
     read_manifest,
@@ -41,7 +43,7 @@ def _generation_1_config() -> Path:
     that the committed generation-1 shards are this config's shards."""
     import yaml
 
-    cfg = yaml.safe_load(LIBRARY_CONFIG.read_text())
+    cfg = mapping("library")
     cfg["problems"]["cr3bp"]["solver"].update(lbfgs_aug_solver="sherman-morrison", lbfgs_memory=30,
                                               transcription={"coast": "rk8"})
     path = Path(tempfile.mkdtemp(prefix="amorgs-test-library-")) / "library.yaml"
@@ -53,11 +55,12 @@ CONFIG = _generation_1_config()
 CFG = load_config(CONFIG)
 
 
-def real_shards(tmp_path: Path, label: str = "0.500", n: int = 2) -> Path:
-    """The first ``n`` library shards of one α solved with generation 1's solver options (:data:`CFG`; shards
-    8, 9, …; batch 0 predates them), written as generate-rule shard tables under tmp/solutions."""
+def real_shards(tmp_path: Path, label: str = "0.500", n: int = 2, options_hash: str | None = None) -> Path:
+    """The first ``n`` library shards of one α solved with ``options_hash`` (default: generation 1's solver
+    options, :data:`CFG`; shards 8, 9, …; batch 0 predates them), written as generate-rule shard tables under
+    tmp/solutions."""
     df = read_library(LIBRARY, "cr3bp", label)
-    df = df[df["options_hash"] == CFG.problems.cr3bp.solver.digest()]
+    df = df[df["options_hash"] == (options_hash or CFG.problems.cr3bp.solver.digest())]
     out = tmp_path / "solutions"
     for k in sorted(df["shard"].unique())[:n]:
         path = out / f"alpha={label}" / f"shard-{k}.parquet"
@@ -99,8 +102,12 @@ def test_export_consolidates_shards_and_skips_held_ones(tmp_path):
     assert [f.name for f in files] == ["shards-00008-00009.parquet"]
     again = export_library(solutions, lib, "cr3bp", CFG, CONFIG)
     assert again["files_added"] == 0 and again["rows"] == summary["rows"]
-    entry = read_manifest(lib, "cr3bp")["files"][0]
+    manifest = read_manifest(lib, "cr3bp")
+    entry = manifest["files"][0]
     assert entry["shards"] == [8, 9] and len(entry["sha256"]) == 64 and entry["options_hashes"]
+    # the config recorded as written and as it took effect (merged over the defaults), with its hash
+    assert manifest["config"] == CONFIG.read_text() and manifest["config_hash"] == CFG.hash
+    assert manifest["effective_config"] == CFG.model_dump(mode="json")
 
 
 def test_export_refuses_a_shard_of_another_config(tmp_path):
@@ -440,8 +447,8 @@ def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(
     import yaml
 
     def config_with(name, **solver):
-        cfg = yaml.safe_load(LIBRARY_CONFIG.read_text())
-        cfg["problems"]["cr3bp"]["solver"].update(solver)
+        cfg = mapping("library")
+        cfg["problems"]["cr3bp"].setdefault("solver", {}).update(solver)
         (tmp_path / name).write_text(yaml.safe_dump(cfg))
         return load_config(tmp_path / name)
 
@@ -459,3 +466,26 @@ def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(
     with pytest.raises(InputError, match="options_hash"):
         _check_same_library(manifest, library_identity(other, "cr3bp"), other.problems.cr3bp.solver,
                             tmp_path / "other.yaml", tmp_path)
+
+
+def test_the_shipped_library_config_is_the_committed_librarys(tmp_path):
+    """config/library.yaml holds only overrides of the typed defaults: merged over them it still has the
+    identity the committed manifest records (seed, starts per shard, solver-option hash), and `library-export
+    --config config/library.yaml` accepts the committed library with its own shards, leaving every byte as it
+    was."""
+    from amorgs.data.library import library_identity
+
+    identity = library_identity(load_config(LIBRARY_CONFIG), "cr3bp")
+    assert identity == manifest_identity(read_manifest(LIBRARY, "cr3bp"))
+    lib = tmp_path / "library"
+    shutil.copytree(LIBRARY / "cr3bp", lib / "cr3bp")
+    before = {p: p.read_bytes() for p in (lib / "cr3bp").rglob("*") if p.is_file()}
+    manifest = read_manifest(LIBRARY, "cr3bp")
+    label = next(e["file"].split("/")[0].removeprefix("alpha=") for e in manifest["files"]
+                 if identity["options_hash"] in e["options_hashes"])
+    solutions = real_shards(tmp_path, label, n=1, options_hash=identity["options_hash"])
+    res = amorgs("library-export", "--solutions-dir", str(solutions), "--library-dir", str(lib),
+                 "--config", str(LIBRARY_CONFIG))
+    assert res.returncode == 0, res.stderr
+    assert "nothing new: the 1 shard(s)" in res.stdout and "identical" in res.stdout
+    assert {p: p.read_bytes() for p in (lib / "cr3bp").rglob("*") if p.is_file()} == before

@@ -1,5 +1,6 @@
 """The committed reference results (reference/study/, reference/study-paper/): every file matches its
-manifest, and the manifest describes a complete run of the shipped config it names."""
+manifest, and the manifest describes a complete run of the shipped config it names — the shipped file (overrides
+of the typed defaults) has the effective config of the file the run read (``config.yaml``, verbatim)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,6 @@ from pathlib import Path
 import pytest
 
 from amorgs.config import load_config
-from amorgs.data.library import sha256_file
 from amorgs.reference import verify_reference
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -19,14 +19,16 @@ REFERENCES = {"study": "config/study.yaml", "study-paper": "config/study-paper.y
 @pytest.mark.parametrize("name", REFERENCES)
 def test_committed_reference_matches_its_manifest_and_config(name):
     config_file = REFERENCES[name]
-    manifest = verify_reference(ROOT / "reference" / name)
+    manifest = verify_reference(ROOT / "reference" / name)  # config.yaml included: the file as the run read it
     assert manifest["config_file"] == config_file
-    assert manifest["config_sha256"] == sha256_file(ROOT / config_file), (
-        f"{config_file} changed since reference/{name} was exported: rerun it and re-export")
+    ran = load_config(ROOT / "reference" / name / "config.yaml")
+    assert load_config(ROOT / config_file) == ran, (
+        f"{config_file} (merged over today's defaults) is no longer the config reference/{name} ran: rerun it and "
+        "re-export")
     files = {f["file"] for f in manifest["files"]}
     assert {"tables/ablation_ert.md", "tables/ablation_rates.md", "tables/ablation_seeds.md",
             "cr3bp/ablation/summary.json"} <= files
-    cfg = load_config(ROOT / config_file)
+    cfg = ran
     cells = [t for t in manifest["solve_tables"] if t["file"].startswith("cr3bp/ablation/")]
     n_arms, n_alphas = len(cfg.ablation.samplers), len(cfg.problems.cr3bp.alphas.test)
     assert sum(t["rows"] for t in cells if "/fraction=" not in t["file"]) >= n_arms * n_alphas * 200
@@ -44,3 +46,18 @@ def test_dest_is_shown_relative_to_the_run_when_inside_it(tmp_path):
 
     assert _shown(tmp_path / "reference" / "x", tmp_path) == Path("reference/x")
     assert _shown(tmp_path / "elsewhere", tmp_path / "run") == tmp_path / "elsewhere"
+
+
+def test_a_reference_config_copy_that_differs_is_named(tmp_path):
+    import shutil
+
+    from amorgs.errors import InputError
+
+    ref = tmp_path / "study"
+    shutil.copytree(ROOT / "reference" / "study", ref)
+    (ref / "config.yaml").write_text((ref / "config.yaml").read_text() + "\n# edited\n")
+    with pytest.raises(InputError, match=r"config\.yaml: differs from the config_sha256"):
+        verify_reference(ref)
+    (ref / "config.yaml").unlink()
+    with pytest.raises(InputError, match=r"config\.yaml: missing"):
+        verify_reference(ref)

@@ -1,4 +1,4 @@
-"""The five ablation samplers on briefly trained small models: layout, bounds, seeds, α, checkpoints."""
+"""The ablation samplers on briefly trained small models: layout, bounds, seeds, α, checkpoints."""
 
 from __future__ import annotations
 
@@ -7,38 +7,29 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-from cr3bp_synthetic import synthetic_hq
+from cr3bp_synthetic import TRAIN_ALPHAS, synthetic_hq
 
-from amorgs.models import cvae, lstm
-from amorgs.models.cr3bp_models import train_control_lstm, train_time_mass_cvae, train_vanilla_cvae
+from amorgs.ablation.arms import ARMS, SAMPLER_NAMES, ArmInputs, build_sampler, get_arm, resolve
+from amorgs.models import cvae
 from amorgs.models.samplers import (
     CHECKPOINTS,
-    SAMPLER_NAMES,
-    AmorGSSampler,
-    CVAETimeMassUniformControl,
-    UniformSampler,
     GMMLSTMSampler,
     NearestAlphaPerturbedSampler,
     NearestAlphaSampler,
-    UniformTimeMassLSTMControl,
-    VanillaCVAESampler,
-    build_sampler,
+    UniformSampler,
     make_valid,
     nearest_training_alpha,
     torch_generator,
 )
-from amorgs.models.training import TrainConfig
 from amorgs.problems import get_problem
 
-BRIEF = TrainConfig(epochs=5, batch_size=1024, lr=5e-3, seed=0, device="cpu")
-LEARNED = tuple(n for n in SAMPLER_NAMES if n != "uniform")
-TRAIN_ALPHAS = (0.1, 0.4, 0.7, 1.0)  # the α of synthetic_hq
+#: Every arm whose guesses depend on α through what it draws on (models, training-α solutions).
+CONDITIONED = tuple(arm.name for arm in ARMS if arm.upfront)
 
 
 @pytest.fixture(scope="module")
-def hq():
-    return synthetic_hq(48)
-
+def hq(tiny_hq):
+    return tiny_hq
 
 
 @pytest.fixture(scope="module")
@@ -47,35 +38,23 @@ def problem():
 
 
 @pytest.fixture(scope="module")
-def models(one_torch_thread, hq):
-    return {
-        "cvae_gmm": train_time_mass_cvae(hq, "small", BRIEF),
-        "vanilla_cvae": train_vanilla_cvae(hq, "small", BRIEF),
-        "lstm": train_control_lstm(hq, "small", BRIEF),
-    }
+def models(tiny_models):
+    return tiny_models
 
 
 @pytest.fixture(scope="module")
-def models_dir(models, tmp_path_factory):
-    d = tmp_path_factory.mktemp("models")
-    cvae.save(models["cvae_gmm"], d / CHECKPOINTS["cvae_gmm"])
-    cvae.save(models["vanilla_cvae"], d / CHECKPOINTS["vanilla_cvae"])
-    lstm.save(models["lstm"], d / CHECKPOINTS["lstm"])
-    return d
+def models_dir(tiny_models_dir):
+    return tiny_models_dir
 
 
 def in_memory(name: str, problem, models, hq=None):
+    """The sampler of arm ``name`` built by its builder from models in memory (no checkpoints), the reuse
+    arms' σ 0.02 and the GMM arm's 3 components."""
     hq = synthetic_hq(48) if hq is None else hq
-    return {
-        "nearest_alpha": lambda: NearestAlphaSampler(problem, hq, TRAIN_ALPHAS),
-        "nearest_alpha_perturbed": lambda: NearestAlphaPerturbedSampler(problem, hq, TRAIN_ALPHAS, 0.02),
-        "gmm_lstm": lambda: GMMLSTMSampler(problem, hq, TRAIN_ALPHAS, models["lstm"], 3),
-        "uniform": lambda: UniformSampler(problem),
-        "cvae_uniform_control": lambda: CVAETimeMassUniformControl(problem, models["cvae_gmm"]),
-        "uniform_lstm_control": lambda: UniformTimeMassLSTMControl(problem, models["lstm"]),
-        "vanilla_cvae": lambda: VanillaCVAESampler(problem, models["vanilla_cvae"]),
-        "amorgs": lambda: AmorGSSampler(problem, models["cvae_gmm"], models["lstm"]),
-    }[name]()
+    arm = get_arm(name)
+    inputs = ArmInputs(models={m: models[m] for m in arm.models}, high_quality=hq, train_alphas=TRAIN_ALPHAS,
+                       perturbation_scale=0.02, gmm_components=3)
+    return resolve(arm.builder)(problem, inputs)
 
 
 @pytest.mark.parametrize("name", SAMPLER_NAMES)
@@ -98,7 +77,7 @@ def test_seeded_rng_gives_identical_samples(name, problem, models):
     assert not np.array_equal(a, sampler.sample(0.3, 16, np.random.default_rng(8)))
 
 
-@pytest.mark.parametrize("name", LEARNED)
+@pytest.mark.parametrize("name", CONDITIONED)
 def test_conditioning_on_alpha_changes_the_samples(name, problem, models):
     sampler = in_memory(name, problem, models)
     low = sampler.sample(0.15, 16, np.random.default_rng(3))

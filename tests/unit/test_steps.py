@@ -21,6 +21,23 @@ def test_every_step_has_settings_for_every_job_of_every_shipped_config():
         assert {rule for rule, _ in jobs} <= set(steps.registry())
 
 
+def test_every_job_takes_its_resources_from_the_config_through_its_step():
+    """A rule's threads, memory and runtime come from its step (workflow/rules/common.smk: step_threads,
+    step_resources); the step reads them from the config section that sizes the job."""
+    from amorgs.config import Job
+
+    cfg = load("paper")
+    for rule, wildcards in steps.expected_jobs(cfg):
+        assert isinstance(steps.job_resources(rule, cfg, wildcards), Job), rule
+    cr3bp = cfg.problems.cr3bp.generate
+    assert steps.job_resources("generate", cfg, {"problem": "cr3bp", "alpha": "0.150", "shard": "0"}) == Job(
+        threads=cr3bp.workers, mem_mb=cr3bp.mem_mb, runtime_min=cr3bp.runtime_min) == Job(
+        threads=16, mem_mb=16000, runtime_min=1440)
+    assert steps.job_resources("ablation_cell", cfg, {"alpha": "0.150", "sampler": "amorgs"}).threads == 16
+    assert steps.job_resources("train_cr3bp", cfg, {"model": "lstm"}) == cfg.resources.train
+    assert steps.job_resources("ablation_report", cfg, {}) == cfg.resources.figure
+
+
 def test_output_templates_keep_the_wildcards():
     assert steps.output_templates("generate") == {"table": "results/{problem}/solutions/alpha={alpha}/shard-{shard}.parquet"}
     assert steps.output_templates("ablation_cell_replicate")["table"].count("{") == 3

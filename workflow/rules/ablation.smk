@@ -14,10 +14,9 @@ rule ablation_cell:
         "logs/ablation_cell/alpha={alpha}/{sampler}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.ablation.workers
+    threads: step_threads("ablation_cell")
     resources:
-        mem_mb=CFG.ablation.mem_mb,
-        runtime=CFG.ablation.runtime_min,
+        **step_resources("ablation_cell"),
     params:
         **step_params("ablation_cell"),
     shell:
@@ -33,10 +32,9 @@ rule ablation_cell_replicate:
         "logs/ablation_cell/seed={mseed}/alpha={alpha}/{sampler}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.ablation.workers
+    threads: step_threads("ablation_cell_replicate")
     resources:
-        mem_mb=CFG.ablation.mem_mb,
-        runtime=CFG.ablation.runtime_min,
+        **step_resources("ablation_cell_replicate"),
     params:
         **step_params("ablation_cell_replicate"),
     shell:
@@ -52,10 +50,9 @@ rule ablation_cell_fraction:
         "logs/ablation_cell/fraction={fraction}/alpha={alpha}/{sampler}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.ablation.workers
+    threads: step_threads("ablation_cell_fraction")
     resources:
-        mem_mb=CFG.ablation.mem_mb,
-        runtime=CFG.ablation.runtime_min,
+        **step_resources("ablation_cell_fraction"),
     params:
         **step_params("ablation_cell_fraction"),
     shell:
@@ -76,10 +73,9 @@ rule ablation_report:
         "logs/ablation_report.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.figure.threads
+    threads: step_threads("ablation_report")
     resources:
-        mem_mb=CFG.resources.figure.mem_mb,
-        runtime=CFG.resources.figure.runtime_min,
+        **step_resources("ablation_report"),
     params:
         **step_params("ablation_report"),
     shell:

@@ -12,10 +12,9 @@ rule analyze_cr3bp:
         "logs/analyze_cr3bp.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.analyze.threads
+    threads: step_threads("analyze_cr3bp")
     resources:
-        mem_mb=CFG.resources.analyze.mem_mb,
-        runtime=CFG.resources.analyze.runtime_min,
+        **step_resources("analyze_cr3bp"),
     params:
         **step_params("analyze_cr3bp"),
     shell:

@@ -2,10 +2,12 @@
 # every rule runs, and the MLflow hooks of the Snakefile's onstart/onsuccess/onerror.  No rules here.
 #
 # Each workflow rule runs one step of amorgs.steps, of the same name. Its outputs come from the step
-# (step_outputs); its settings, the step's typed slice of the config, reach the job as JSON with the
-# wildcards and the named inputs and outputs Snakemake resolved (params.job); the same settings alone are
-# params.settings, which re-runs a job whose settings changed (step_params); and its command is STEP,
-# `python -m amorgs step --job ...`, which tags the job's MLflow run with those wildcards.  Rules declare only their inputs, log and resources.
+# (step_outputs); so do its threads, memory and wall-clock limit (step_threads, step_resources: the step's
+# slice of the config's resources); its settings, the step's typed slice of the config, reach the job as JSON
+# with the wildcards and the named inputs and outputs Snakemake resolved (params.job); the same settings alone
+# are params.settings, which re-runs a job whose settings changed (step_params); and its command is STEP,
+# `python -m amorgs step --job ...`, which tags the job's MLflow run with those wildcards.  A rule itself
+# declares only its inputs and its log.
 import os
 import sys
 from pathlib import Path
@@ -13,7 +15,7 @@ from pathlib import Path
 from snakemake_interface_executor_plugins.settings import DeploymentMethod
 
 from amorgs import layout, lifeline, steps
-from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, SAMPLER_NAMES
+from amorgs.ablation.arms import SAMPLER_NAMES
 from amorgs.config import load_workflow_config
 from amorgs.errors import ConfigError, InputError
 from amorgs.data.library import library_files as _library_files
@@ -64,6 +66,19 @@ def step_job(name):
 
     job.step = name
     return job
+
+
+def step_threads(name):
+    """threads of the rule called ``name``, from its step's resources for the job's wildcards (steps.job_resources)."""
+    return lambda wildcards: steps.job_resources(name, CFG, wildcards).threads
+
+
+def step_resources(name):
+    """resources of the rule called ``name``, mem_mb (MB) and runtime (minutes), from its step as for threads."""
+    return {
+        "mem_mb": lambda wildcards: steps.job_resources(name, CFG, wildcards).mem_mb,
+        "runtime": lambda wildcards: steps.job_resources(name, CFG, wildcards).runtime_min,
+    }
 
 
 def step_params(name):
@@ -120,11 +135,8 @@ def finish_tracking(status):
 
 
 def ablation_cell_inputs(wildcards, model_template=layout.CR3BP_MODEL):
-    """The checkpoints the {sampler} loads (none for uniform / nearest_alpha*) and, for the reuse baselines,
-    the filtered high-quality table (they draw from its training-α rows)."""
-    from amorgs.steps.ablation import cell_models
+    """What the {sampler}'s arm draws on: the checkpoints it loads and, if it needs it, the filtered
+    high-quality table (amorgs.steps.ablation.cell_inputs, from the table of arms)."""
+    from amorgs.steps.ablation import cell_inputs
 
-    inputs = {"models": cell_models(wildcards.sampler, model_template, wildcards)}
-    if wildcards.sampler in NEEDS_HIGH_QUALITY:
-        inputs["high_quality"] = layout.HIGH_QUALITY.format(problem="cr3bp")
-    return inputs
+    return cell_inputs(wildcards.sampler, model_template, wildcards)

@@ -10,10 +10,9 @@ rule filter:
         "logs/filter/{problem}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.filter.threads
+    threads: step_threads("filter")
     resources:
-        mem_mb=CFG.resources.filter.mem_mb,
-        runtime=CFG.resources.filter.runtime_min,
+        **step_resources("filter"),
     params:
         **step_params("filter"),
     shell:

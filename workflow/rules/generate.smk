@@ -10,10 +10,9 @@ rule generate:
         "logs/generate/{problem}/alpha={alpha}/shard-{shard}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: lambda w: getattr(CFG.problems, w.problem).generate.workers
+    threads: step_threads("generate")
     resources:
-        mem_mb=lambda w: getattr(CFG.problems, w.problem).generate.mem_mb,
-        runtime=lambda w: getattr(CFG.problems, w.problem).generate.runtime_min,
+        **step_resources("generate"),
     params:
         **step_params("generate"),
     shell:
@@ -30,10 +29,9 @@ rule merge:
         "logs/merge/{problem}/alpha={alpha}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.merge.threads
+    threads: step_threads("merge")
     resources:
-        mem_mb=CFG.resources.merge.mem_mb,
-        runtime=CFG.resources.merge.runtime_min,
+        **step_resources("merge"),
     params:
         **step_params("merge"),
     shell:

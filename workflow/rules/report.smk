@@ -10,10 +10,9 @@ rule fig02_foxholes:
         "logs/fig02_foxholes.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.figure.threads
+    threads: step_threads("fig02_foxholes")
     resources:
-        mem_mb=CFG.resources.figure.mem_mb,
-        runtime=CFG.resources.figure.runtime_min,
+        **step_resources("fig02_foxholes"),
     params:
         **step_params("fig02_foxholes"),
     shell:
@@ -30,10 +29,9 @@ rule fig16_dejong_predictions:
         "logs/fig16_dejong_predictions.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.figure.threads
+    threads: step_threads("fig16_dejong_predictions")
     resources:
-        mem_mb=CFG.resources.figure.mem_mb,
-        runtime=CFG.resources.figure.runtime_min,
+        **step_resources("fig16_dejong_predictions"),
     params:
         **step_params("fig16_dejong_predictions"),
     shell:

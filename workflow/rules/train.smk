@@ -14,10 +14,9 @@ rule train_dejong_cvae:
         "logs/train_dejong_cvae.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.train.threads
+    threads: step_threads("train_dejong_cvae")
     resources:
-        mem_mb=CFG.resources.train.mem_mb,
-        runtime=CFG.resources.train.runtime_min,
+        **step_resources("train_dejong_cvae"),
     params:
         **step_params("train_dejong_cvae"),
     shell:
@@ -33,10 +32,9 @@ rule predict_dejong_cvae:
         "logs/predict_dejong_cvae.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.predict.threads
+    threads: step_threads("predict_dejong_cvae")
     resources:
-        mem_mb=CFG.resources.predict.mem_mb,
-        runtime=CFG.resources.predict.runtime_min,
+        **step_resources("predict_dejong_cvae"),
     params:
         **step_params("predict_dejong_cvae"),
     shell:
@@ -52,10 +50,9 @@ rule train_cr3bp:
         "logs/train_cr3bp/{model}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.train.threads
+    threads: step_threads("train_cr3bp")
     resources:
-        mem_mb=CFG.resources.train.mem_mb,
-        runtime=CFG.resources.train.runtime_min,
+        **step_resources("train_cr3bp"),
     params:
         **step_params("train_cr3bp"),
     shell:
@@ -71,10 +68,9 @@ rule train_cr3bp_fraction:
         "logs/train_cr3bp/fraction={fraction}/{model}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.train.threads
+    threads: step_threads("train_cr3bp_fraction")
     resources:
-        mem_mb=CFG.resources.train.mem_mb,
-        runtime=CFG.resources.train.runtime_min,
+        **step_resources("train_cr3bp_fraction"),
     params:
         **step_params("train_cr3bp_fraction"),
     shell:
@@ -90,10 +86,9 @@ rule train_cr3bp_replicate:
         "logs/train_cr3bp/seed={mseed}/{model}.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.train.threads
+    threads: step_threads("train_cr3bp_replicate")
     resources:
-        mem_mb=CFG.resources.train.mem_mb,
-        runtime=CFG.resources.train.runtime_min,
+        **step_resources("train_cr3bp_replicate"),
     params:
         **step_params("train_cr3bp_replicate"),
     shell:
@@ -111,10 +106,9 @@ rule predict_cr3bp:
         "logs/predict_cr3bp.log",
     conda:
         "../envs/amorgs.yaml"
-    threads: CFG.resources.predict.threads
+    threads: step_threads("predict_cr3bp")
     resources:
-        mem_mb=CFG.resources.predict.mem_mb,
-        runtime=CFG.resources.predict.runtime_min,
+        **step_resources("predict_cr3bp"),
     params:
         **step_params("predict_cr3bp"),
     shell:

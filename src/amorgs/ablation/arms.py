@@ -1,44 +1,190 @@
-"""The registry of ablation arms (samplers): names, labels and what each needs — no torch import, so the
-config, the workflow and the figures can use it.  The implementations live in
-:mod:`amorgs.models.samplers`.
+"""The ablation's arms (initial-guess samplers) as one table, :data:`ARMS`: one :class:`Arm` per arm.
+
+An entry says everything the package asks about an arm: its name (the ``{sampler}`` wildcard, the config's
+``ablation.samplers``, the ``sampler`` column of the cell tables), its label (figures and tables), the
+checkpoints it loads, whether it draws on the high-quality table of the training α (and whether it reuses that
+table's rows as a finite pool), its role in the statistics, whether it is one of the paper's five, and how it
+is built.  Everything else — the config's enums, the workflow's wildcard constraints and inputs, the models
+trained for replicates and learning curves, the up-front CPU of the break-even table, the statistics' default
+baselines, the order and labels of the figures — is derived from this table.
+
+The builder is a dotted name ``"package.module:callable"`` resolved only by :func:`build_sampler`, so this
+module imports neither torch nor the models: the config, the workflow and the figures read the table freely.
+A builder is called as ``builder(problem, inputs)`` with an :class:`ArmInputs` and returns a sampler
+(``sample(alpha, n, rng) -> ndarray (n, 3N+4)``, :mod:`amorgs.models.samplers`).
+
+Adding an arm (a diffusion sampler, say): write the sampler class and its builder in a model module (a new
+``amorgs/models/<arm>.py`` or :mod:`amorgs.models.samplers`), then add one :class:`Arm` to :data:`ARMS`.  If it
+loads a model nobody trains yet, that model is part of its model module too (its name in
+:data:`amorgs.models.names.CR3BP_MODELS` and its trainer in :data:`amorgs.models.cr3bp_models.TRAINERS`).
+``tests/unit/test_arms.py`` then builds and samples it with everything else; regenerate the config schema
+(``amorgs config-schema --write``), whose sampler enum comes from here.
 """
 
 from __future__ import annotations
 
-#: The paper's five arms (Sec. V.B.7, Table 6).
-PAPER_SAMPLER_NAMES = ("uniform", "cvae_uniform_control", "uniform_lstm_control", "vanilla_cvae", "amorgs")
-#: Arms added to ask whether learning beats reusing known solutions (issue 11).
-BASELINE_SAMPLER_NAMES = ("nearest_alpha", "nearest_alpha_perturbed", "gmm_lstm")
-SAMPLER_NAMES = PAPER_SAMPLER_NAMES + BASELINE_SAMPLER_NAMES
-SAMPLER_LABELS = {
-    "uniform": "Uniform",
-    "uniform_lstm_control": "Uniform time & mass, LSTM control",
-    "cvae_uniform_control": "CVAE time & mass, uniform control",
-    "vanilla_cvae": "Vanilla CVAE",
-    "amorgs": "AmorGS",
-    "nearest_alpha": "Nearest training α, reused",
-    "nearest_alpha_perturbed": "Nearest training α + noise",
-    "gmm_lstm": "GMM time & mass, LSTM control",
-}
-#: Arms that read the filtered high-quality table (restricted to the training α).
-NEEDS_HIGH_QUALITY = BASELINE_SAMPLER_NAMES
-#: Arms that reuse that table's rows as guesses, drawn from a finite pool (issue 21): their cells of every
-#: model seed are slices of ONE seeded draw, so the pooled starts are drawn without replacement until the
-#: pool is exhausted.
-REUSE_SAMPLER_NAMES = ("nearest_alpha", "nearest_alpha_perturbed")
-#: Arm → the checkpoints (keys of ``amorgs.models.samplers.CHECKPOINTS``) it loads.
-NEEDS_MODELS = {
-    "uniform": (),
-    "cvae_uniform_control": ("cvae_gmm",),
-    "uniform_lstm_control": ("lstm",),
-    "vanilla_cvae": ("vanilla_cvae",),
-    "amorgs": ("cvae_gmm", "lstm"),
-    "nearest_alpha": (),
-    "nearest_alpha_perturbed": (),
-    "gmm_lstm": ("lstm",),
+import importlib
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+#: Roles in the statistics (:mod:`amorgs.ablation.statistics`).  One arm each holds ``baseline``, ``reuse`` and
+#: ``headline``; every other arm is ``compared`` against them.
+ROLES = {
+    "baseline": "uniform multi-start: every speed-up, ratio of rates and break-even divides by it",
+    "reuse": "reuse of known solutions: the versus_reuse ratios divide by it",
+    "headline": "the paper's method: its median high-quality solve time is the Fig. 22 time cap and the "
+                "numerator of the search acceleration; Fig. 23 draws its samples",
+    "compared": "compared against the three above",
 }
 
 
-def models_loaded(samplers) -> list[str]:
+@dataclass(frozen=True)
+class Arm:
+    """One arm of the ablation.
+
+    name: identifier (wildcard, config value, ``sampler`` column).   label: for figures and tables.
+    builder: ``"package.module:callable"``, called as ``builder(problem, inputs: ArmInputs) -> sampler``.
+    models: the checkpoints it loads (names of :data:`amorgs.models.names.CR3BP_MODELS`; none: model-free).
+    high_quality: it needs the filtered high-quality table and the training α (rows at the training α only).
+    pooled: its guesses are rows of that table, a finite pool: its cells of every model seed are slices of
+        ONE seeded draw, so the pooled starts are drawn without replacement until the pool is exhausted.
+    role: its role in the statistics, a key of :data:`ROLES`.   paper: one of the paper's five (Table 6).
+    """
+
+    name: str
+    label: str
+    builder: str
+    models: tuple[str, ...] = ()
+    high_quality: bool = False
+    pooled: bool = False
+    role: str = "compared"
+    paper: bool = False
+
+    @property
+    def learned(self) -> bool:
+        """Whether it loads trained models (the arms a learning curve over data fractions applies to)."""
+        return bool(self.models)
+
+    @property
+    def upfront(self) -> bool:
+        """Whether it draws on anything computed before the first new α (the training-α solves, models)."""
+        return self.high_quality or self.learned
+
+
+_SAMPLERS = "amorgs.models.samplers"
+
+ARMS: tuple[Arm, ...] = (
+    Arm("uniform", "Uniform", f"{_SAMPLERS}:UniformSampler.build", role="baseline", paper=True),
+    Arm("cvae_uniform_control", "CVAE time & mass, uniform control", f"{_SAMPLERS}:CVAETimeMassUniformControl.build",
+        models=("cvae_gmm",), paper=True),
+    Arm("uniform_lstm_control", "Uniform time & mass, LSTM control", f"{_SAMPLERS}:UniformTimeMassLSTMControl.build",
+        models=("lstm",), paper=True),
+    Arm("vanilla_cvae", "Vanilla CVAE", f"{_SAMPLERS}:VanillaCVAESampler.build", models=("vanilla_cvae",),
+        paper=True),
+    Arm("amorgs", "AmorGS", f"{_SAMPLERS}:AmorGSSampler.build", models=("cvae_gmm", "lstm"), role="headline",
+        paper=True),
+    Arm("nearest_alpha", "Nearest training α, reused", f"{_SAMPLERS}:NearestAlphaSampler.build",
+        high_quality=True, pooled=True, role="reuse"),
+    Arm("nearest_alpha_perturbed", "Nearest training α + noise", f"{_SAMPLERS}:NearestAlphaPerturbedSampler.build",
+        high_quality=True, pooled=True),
+    Arm("gmm_lstm", "GMM time & mass, LSTM control", f"{_SAMPLERS}:GMMLSTMSampler.build", models=("lstm",),
+        high_quality=True),
+)
+
+#: Name → arm.
+BY_NAME: dict[str, Arm] = {arm.name: arm for arm in ARMS}
+#: Every arm's name, in table order (the order of figures and tables).
+SAMPLER_NAMES: tuple[str, ...] = tuple(BY_NAME)
+#: The arms that load models.
+LEARNED_SAMPLER_NAMES: tuple[str, ...] = tuple(arm.name for arm in ARMS if arm.learned)
+
+
+def _the(role: str) -> str:
+    holders = [arm.name for arm in ARMS if arm.role == role]
+    if len(holders) != 1:
+        raise RuntimeError(f"exactly one arm must have the role {role!r}, got {holders}")
+    return holders[0]
+
+
+#: The arms of the three roles the statistics take as their defaults.
+BASELINE_ARM = _the("baseline")
+REUSE_ARM = _the("reuse")
+HEADLINE_ARM = _the("headline")
+
+
+def get_arm(name: str) -> Arm:
+    """The arm called ``name``; ``ValueError`` naming the choices otherwise."""
+    if name not in BY_NAME:
+        raise ValueError(f"unknown sampler {name!r}; choose one of {SAMPLER_NAMES}")
+    return BY_NAME[name]
+
+
+def arm_label(name: str) -> str:
+    """The arm's label, or ``name`` itself for a name not in the table."""
+    return BY_NAME[name].label if name in BY_NAME else name
+
+
+def models_loaded(samplers: Iterable[str]) -> list[str]:
     """The checkpoints any of ``samplers`` loads, sorted (none for uniform and the reuse baselines)."""
-    return sorted({m for s in samplers for m in NEEDS_MODELS[s]})
+    return sorted({m for s in samplers for m in get_arm(s).models})
+
+
+# ---------------------------------------------------------------------------------------- building one
+
+
+@dataclass(frozen=True)
+class ArmInputs:
+    """What a builder gets besides the problem.
+
+    models: model name → the loaded model, exactly the arm's ``models``.
+    high_quality: the filtered high-quality table (arms with ``high_quality``; None otherwise).
+    train_alphas: the training α, the only α whose rows may be used (arms with ``high_quality``).
+    perturbation_scale: σ of the perturbed reuse arm, in the box-normalised space (dimensionless).
+    gmm_components: mixture components per training α of the GMM arm.
+    """
+
+    models: Mapping[str, Any]
+    high_quality: Any = None
+    train_alphas: tuple[float, ...] | None = None
+    perturbation_scale: float = 0.02
+    gmm_components: int = 5
+
+
+def resolve(dotted: str):
+    """The object a ``"package.module:attr.attr"`` name points to."""
+    module, _, qualname = dotted.partition(":")
+    obj = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def build_sampler(
+    name: str,
+    problem,
+    models_dir: str | Path | None = None,
+    high_quality=None,
+    train_alphas=None,
+    perturbation_scale: float = 0.02,
+    gmm_components: int = 5,
+):
+    """The sampler of arm ``name`` for ``problem``: its models loaded (on the CPU) from the checkpoints in
+    ``models_dir`` (:func:`amorgs.models.samplers.load_model`), the high-quality table and training α handed
+    over if it needs them.  ``ValueError`` for an unknown arm or a missing input; ``FileNotFoundError`` for a
+    missing checkpoint."""
+    arm = get_arm(name)
+    if arm.models and models_dir is None:
+        raise ValueError(f"sampler {name!r} needs a models directory")
+    if arm.high_quality and (high_quality is None or train_alphas is None):
+        raise ValueError(f"sampler {name!r} needs the high-quality table and the training α")
+    models = {}
+    if arm.models:
+        from amorgs.models.samplers import load_model
+
+        models = {m: load_model(Path(models_dir), m) for m in arm.models}
+    inputs = ArmInputs(models=models, high_quality=high_quality if arm.high_quality else None,
+                       train_alphas=tuple(train_alphas) if arm.high_quality else None,
+                       perturbation_scale=perturbation_scale, gmm_components=gmm_components)
+    return resolve(arm.builder)(problem, inputs)

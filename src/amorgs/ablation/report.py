@@ -19,6 +19,7 @@ import math
 import numpy as np
 import pandas as pd
 
+from amorgs.ablation.arms import BASELINE_ARM, REUSE_ARM, SAMPLER_NAMES, arm_label
 from amorgs.ablation.statistics import (
     anytime_bands,
     anytime_curves,
@@ -119,7 +120,7 @@ def summarize(
         metrics[metric_key("rate_percent", r.alpha, r.sampler, *swept)] = r.percent
         metrics[metric_key("rate_ci95_low", r.alpha, r.sampler, *swept)] = r.ci95_low
         metrics[metric_key("rate_ci95_high", r.alpha, r.sampler, *swept)] = r.ci95_high
-        for col in ("p_gt_uniform", "p_gt_nearest_alpha", "p_lt_nearest_alpha"):
+        for col in (f"p_gt_{BASELINE_ARM}", f"p_gt_{REUSE_ARM}", f"p_lt_{REUSE_ARM}"):
             metrics[metric_key(f"fisher_{col}", r.alpha, r.sampler, *swept)] = getattr(r, col, math.nan)
     for r in ert.itertuples(index=False):
         metrics[metric_key(f"aRT_{r.unit}", r.alpha, r.sampler)] = r.aRT
@@ -174,8 +175,6 @@ def summarize(
 
 def table6_markdown(t6: pd.DataFrame) -> str:
     """Table 6 in the paper's orientation: one block per α, samplers as columns."""
-    from amorgs.ablation.arms import SAMPLER_LABELS, SAMPLER_NAMES
-
     out = []
     rows = [
         ("Percentage (%)", "percent_high_quality", "{:.1f}"),
@@ -189,7 +188,7 @@ def table6_markdown(t6: pd.DataFrame) -> str:
         g = g.set_index("sampler")
         order = [s for s in SAMPLER_NAMES if s in g.index] + [s for s in g.index if s not in SAMPLER_NAMES]
         out.append(f"**α = {alpha:g}** (n = {int(g['n'].max())} starts per sampler)\n")
-        out.append("| | " + " | ".join(SAMPLER_LABELS.get(s, s) for s in order) + " |")
+        out.append("| | " + " | ".join(arm_label(s) for s in order) + " |")
         out.append("|---|" + "---|" * len(order))
         for label, col, fmt in rows:
             if col is None:
@@ -225,9 +224,9 @@ def markdown_table(df: pd.DataFrame, title: str = "") -> str:
 MARKDOWN_TITLES = {
     "rates": "High-quality rate per arm: k of n starts, Wilson 95 % interval, one-sided Fisher p (arm > reference)",
     "beta_sweep": "High-quality rate vs β per arm (Wilson 95 %, one-sided Fisher p)",
-    "ert": "Expected running time aRT = cost spent ÷ high-quality found; speed-up = aRT(uniform) ÷ aRT(arm); "
-           "versus_reuse = aRT(nearest_alpha) ÷ aRT(arm), > 1: the arm beats reuse; bootstrap 95 %; the reuse "
-           "arms drawn as ablation_reuse_pool states",
+    "ert": f"Expected running time aRT = cost spent ÷ high-quality found; speed-up = aRT({BASELINE_ARM}) ÷ "
+           f"aRT(arm); versus_reuse = aRT({REUSE_ARM}) ÷ aRT(arm), > 1: the arm beats reuse; bootstrap 95 %; the "
+           "reuse arms drawn as ablation_reuse_pool states",
     "ert_distinct": "What a designer wants: aRT = cost spent ÷ new η-distinct high-quality optima (paper Eq. 12; "
                     "each arm's starts in order, a solution counts when farther than η from every one counted "
                     "before — repeats find nothing new); speed-up and versus_reuse as in ablation_ert, "
@@ -235,11 +234,11 @@ MARKDOWN_TITLES = {
     "reuse_pool": "Reuse arms: the training α reused, its pool of high-quality rows, and the draw every table of "
                   "this report counts — without replacement until the pool is exhausted, then with replacement",
     "iteration_capped": "Fig. 22 with a fixed iteration cap: % within cap (Wilson 95 %), throughput, ratios to "
-                        "uniform (ratio of percentages: Katz 95 %; throughput ratio: bootstrap 95 %)",
+                        f"{BASELINE_ARM} (ratio of percentages: Katz 95 %; throughput ratio: bootstrap 95 %)",
     "learning_curve": "Learning curve: aRT of the learned arms vs the fraction of the training data their models "
-                      "saw; speed-up = aRT(uniform) ÷ aRT(arm), bootstrap 95 %",
+                      f"saw; speed-up = aRT({BASELINE_ARM}) ÷ aRT(arm), bootstrap 95 %",
     "seeds": "Per model-training seed: high quality k of n (Wilson 95 %) and aRT in iterations; the other "
              "tables pool the seeds",
     "break_even": "Break-even: new α after which an arm's up-front CPU (data; training) is repaid by the CPU it "
-                  "saves over uniform, for K high-quality solutions per α (bootstrap 95 %)",
+                  f"saves over {BASELINE_ARM}, for K high-quality solutions per α (bootstrap 95 %)",
 }

@@ -12,6 +12,10 @@ tau_s, tau_i, tau_f, cpu_s, wall_s, start``).  "Solve time" is the solve's CPU s
 solve, so it equals wall time on an idle core and is robust to a loaded machine); "high quality" means
 converged (verified) and m_f ≥ β.
 
+The arms compared against default to the roles of the table of arms (:mod:`amorgs.ablation.arms`):
+``baseline`` its baseline (uniform multi-start), ``reuse`` its reuse arm (nearest_alpha) and the time cap's
+``reference`` its headline arm (AmorGS).
+
 The capped study is computed post hoc from the uncapped solves: IPOPT is deterministic, so a solve that
 converged within time c also converges under a cap c, and a capped solve costs min(t, c).
 """
@@ -22,6 +26,8 @@ import math
 
 import numpy as np
 import pandas as pd
+
+from amorgs.ablation.arms import BASELINE_ARM, HEADLINE_ARM, REUSE_ARM
 
 
 def high_quality(df: pd.DataFrame, beta_kg: float) -> pd.Series:
@@ -66,8 +72,9 @@ def table6(df: pd.DataFrame, beta_kg: float) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def time_cap(df: pd.DataFrame, beta_kg: float, reference: str = "amorgs") -> float:
-    """The paper's per-solve cap: the median solve time of the reference sampler's high-quality solves."""
+def time_cap(df: pd.DataFrame, beta_kg: float, reference: str = HEADLINE_ARM) -> float:
+    """The paper's per-solve cap (CPU s): the median solve time of the reference sampler's high-quality solves
+    (default: the headline arm of :mod:`amorgs.ablation.arms`)."""
     ref = df[(df["sampler"] == reference) & high_quality(df, beta_kg)]
     if ref.empty:
         return math.nan
@@ -84,8 +91,8 @@ def capped_study(
     df: pd.DataFrame,
     beta_kg: float,
     cap_s: float | None = None,
-    reference: str = "amorgs",
-    baseline: str = "uniform",
+    reference: str = HEADLINE_ARM,
+    baseline: str = BASELINE_ARM,
     n_boot: int = 2000,
     seed: int = 0,
 ) -> tuple[pd.DataFrame, dict]:
@@ -188,7 +195,7 @@ def _order(df: pd.DataFrame) -> pd.DataFrame:
     return df.sort_values(keys, kind="stable") if keys else df
 
 
-def rates(df: pd.DataFrame, betas, references: tuple[str, ...] = ("uniform", "nearest_alpha")) -> pd.DataFrame:
+def rates(df: pd.DataFrame, betas, references: tuple[str, ...] = (BASELINE_ARM, REUSE_ARM)) -> pd.DataFrame:
     """Per (α, sampler, β): high-quality count k of n starts, rate (%), 95 % Wilson interval, and the one-sided
     Fisher exact p-values of "this arm's rate is higher than the reference's" (``p_gt_<reference>``) and
     "… lower than the reference's" (``p_lt_<reference>``) for each reference present (NaN for the reference
@@ -292,7 +299,7 @@ def _versus(cost_all, counters, base, idx, n_boot: int, rng: np.random.Generator
 
 
 def expected_running_time(
-    df: pd.DataFrame, beta_kg: float, baseline: str = "uniform", reuse: str = "nearest_alpha",
+    df: pd.DataFrame, beta_kg: float, baseline: str = BASELINE_ARM, reuse: str = REUSE_ARM,
     n_boot: int = 2000, seed: int = 0, target: str = "high_quality", eta: float | None = None,
 ) -> pd.DataFrame:
     """COCO-style expected running time per (α, sampler, unit): aRT = (all cost spent) ÷ (what was found), in
@@ -384,8 +391,8 @@ def seed_spread(df: pd.DataFrame, beta_kg: float) -> pd.DataFrame:
 
 
 def learning_curve(
-    full: pd.DataFrame, partial: pd.DataFrame, beta_kg: float, baseline: str = "uniform",
-    reuse: str = "nearest_alpha", n_boot: int = 2000, seed: int = 0,
+    full: pd.DataFrame, partial: pd.DataFrame, beta_kg: float, baseline: str = BASELINE_ARM,
+    reuse: str = REUSE_ARM, n_boot: int = 2000, seed: int = 0,
 ) -> pd.DataFrame:
     """The expected running time of each learned arm against the fraction of the training data its models saw
     (issue 11 §4): :func:`expected_running_time` of the arm's cells at each ``data_fraction`` of ``partial``
@@ -409,7 +416,7 @@ def learning_curve(
 
 def break_even(
     df: pd.DataFrame, beta_kg: float, upfront_cpu_s: dict[str, float], solutions: tuple[int, ...],
-    baseline: str = "uniform", n_boot: int = 2000, seed: int = 0,
+    baseline: str = BASELINE_ARM, n_boot: int = 2000, seed: int = 0,
 ) -> pd.DataFrame:
     """After how many new α does an arm's up-front CPU pay for itself (issue 11 §5)?
 
@@ -481,7 +488,7 @@ def ratio_of_rates_interval(k1: int, n1: int, k2: int, n2: int, z: float = 1.96)
 
 
 def iteration_capped(
-    df: pd.DataFrame, beta_kg: float, caps, max_iter: int | None = None, baseline: str = "uniform",
+    df: pd.DataFrame, beta_kg: float, caps, max_iter: int | None = None, baseline: str = BASELINE_ARM,
     n_boot: int = 2000, seed: int = 0,
 ) -> pd.DataFrame:
     """The paper's Fig. 22 measure with an iteration cap fixed *before* the scored solves (config

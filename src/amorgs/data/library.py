@@ -375,8 +375,8 @@ def _same_solves(shard: pd.DataFrame, held: pd.DataFrame) -> bool:
 def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, cfg, config_file: str | Path) -> dict:
     """Add every finished library-config shard under ``solutions_dir/alpha=*/`` not yet in the library.
 
-    ``cfg`` is the typed config read from ``config_file`` (:func:`amorgs.config.load_config`; the file's text is
-    recorded).  The library is one config's: ``config_file`` must have the identity (:func:`library_identity`) that the
+    ``cfg`` is the typed config read from ``config_file`` (:func:`amorgs.config.load_config`; the file's text —
+    overrides of the typed defaults — is recorded, and so is the effective config with its hash).  The library is one config's: ``config_file`` must have the identity (:func:`library_identity`) that the
     manifest records, whatever file it is (another config's shards need another ``library_dir``).  Every shard
     is checked (:func:`check_library_shard`; a new one must carry the config's solver-option hash, a held one
     may predate it); a shard whose index the library holds must hold the same solves as the library (timings
@@ -465,6 +465,8 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
         "problem": problem,
         "config_file": str(config_file),
         "config": Path(config_file).read_text(),
+        "effective_config": cfg.model_dump(mode="json"),
+        "config_hash": cfg.hash,
         "seed": identity["seed"],
         "starts_per_shard": identity["starts_per_shard"],
         "identity": identity,

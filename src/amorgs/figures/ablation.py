@@ -14,7 +14,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from scipy.stats import gaussian_kde
 
-from amorgs.ablation.arms import SAMPLER_LABELS, SAMPLER_NAMES
+from amorgs.ablation.arms import BASELINE_ARM, HEADLINE_ARM, REUSE_ARM, SAMPLER_NAMES, arm_label
 from amorgs.ablation.summary import AblationSummary
 from amorgs.alphas import distinct_alphas, rows_at, rows_at_any
 
@@ -46,7 +46,7 @@ def fig21_solve_time_histograms(solves: pd.DataFrame, beta_kg: float) -> Figure:
                     ax.plot(grid, gaussian_kde(t)(grid), color=f"C{j}")
             else:
                 ax.text(0.5, 0.5, "no high-quality solve", ha="center", va="center", transform=ax.transAxes)
-            ax.set_title(f"{SAMPLER_LABELS.get(sampler, sampler)}\nα = {alpha:g}, n_HQ = {t.size}/{len(g)}",
+            ax.set_title(f"{arm_label(sampler)}\nα = {alpha:g}, n_HQ = {t.size}/{len(g)}",
                          fontsize=8)
             ax.set_xlabel("solve time (CPU s)")
             ax.set_ylabel("probability density (1/CPU s)", fontsize=8)
@@ -72,16 +72,17 @@ def fig22_capped_convergence(capped: pd.DataFrame) -> Figure:
         ax.bar(range(len(t)), y, color=[f"C{i}" for i in range(len(t))], alpha=0.8)
         ax.errorbar(range(len(t)), y, yerr=[y - t["ci95_low"].to_numpy(float), t["ci95_high"].to_numpy(float) - y],
                     fmt="none", ecolor="k", capsize=3, lw=1)
-        ax.set_xticks(range(len(t)), [SAMPLER_LABELS.get(s, s) for s in t.index], rotation=30, ha="right", fontsize=8)
+        ax.set_xticks(range(len(t)), [arm_label(s) for s in t.index], rotation=30, ha="right", fontsize=8)
         ax.set_ylabel("high-quality rate within cap (%)\n(converged and m_f ≥ β; Wilson 95 %)", fontsize=8)
         ax.set_ylim(0, 100)
         ax.set_title(f"α = {alpha:g}, cap = {t['cap_s'].iloc[0]:.1f} CPU s, n = {int(t['n'].iloc[0])}")
-    fig.suptitle("Fig. 22 — high-quality rate under a per-solve time cap (AmorGS median solve time)")
+    fig.suptitle(f"Fig. 22 — high-quality rate under a per-solve time cap "
+                 f"({arm_label(HEADLINE_ARM)} median solve time)")
     return fig
 
 
 def fig23_amorgs_diversity(solves: pd.DataFrame, ground_truth: pd.DataFrame, beta_kg: float,
-                           sampler: str = "amorgs") -> Figure:
+                           sampler: str = HEADLINE_ARM) -> Figure:
     """Per test α: the sampler's guesses, their high-quality solutions, and the ground-truth HQ set,
     in (τ_s, TOF) coordinates (TU) coloured by m_f (kg) on ONE colour range shared by every panel: that of
     the high-quality solutions and the ground truth (guesses outside it saturate, the colour bar says so).
@@ -120,15 +121,11 @@ def fig23_amorgs_diversity(solves: pd.DataFrame, ground_truth: pd.DataFrame, bet
         axes[i, 0].set_ylabel("TOF (TU)")
     fig.colorbar(ScalarMappable(norm=norm, cmap="viridis"), ax=axes.ravel().tolist(), extend="both",
                  label="m_f (kg), one range for every panel")
-    fig.suptitle(f"Fig. 23 — {SAMPLER_LABELS.get(sampler, sampler)} samples, their solutions and the ground truth")
+    fig.suptitle(f"Fig. 23 — {arm_label(sampler)} samples, their solutions and the ground truth")
     return fig
 
 
 # ------------------------------------------------------------------------- issue 11: new arms, new measures
-
-
-def _label(s: str) -> str:
-    return SAMPLER_LABELS.get(s, s)
 
 
 def _colour(s: str) -> str:
@@ -137,8 +134,8 @@ def _colour(s: str) -> str:
 
 #: Rows of the speed-up figure: (aRT table: ``ert`` per high-quality solution or ``ert_distinct`` per new
 #: η-distinct optimum, column of it, unit, what the ratio is against).
-SPEEDUP_ROWS = (("ert", "speedup", "iterations", "uniform"), ("ert", "versus_reuse", "iterations", "nearest-α reuse"),
-                ("ert_distinct", "versus_reuse", "iterations", "nearest-α reuse"), ("ert", "speedup", "cpu_s", "uniform"))
+SPEEDUP_ROWS = (("ert", "speedup", "iterations", BASELINE_ARM), ("ert", "versus_reuse", "iterations", REUSE_ARM),
+                ("ert_distinct", "versus_reuse", "iterations", REUSE_ARM), ("ert", "speedup", "cpu_s", BASELINE_ARM))
 _PER = {"ert": ("HQ", "k_high_quality", "per high-quality solution"),
         "ert_distinct": ("distinct", "k_distinct", "per new η-distinct optimum")}
 
@@ -161,7 +158,7 @@ def _ratio_panel(ax, t: pd.DataFrame, column: str, found: str, tag: str) -> None
                 ha="center", va="bottom", fontsize=7)
     ax.axhline(1.0, color="grey", ls="--", lw=0.8)
     ax.set_yscale("log")
-    ax.set_xticks(range(len(order)), [_label(s) for s in order], rotation=35, ha="right", fontsize=7)
+    ax.set_xticks(range(len(order)), [arm_label(s) for s in order], rotation=35, ha="right", fontsize=7)
 
 
 def ablation_speedups(ert: pd.DataFrame, ert_distinct: pd.DataFrame) -> Figure:
@@ -181,7 +178,7 @@ def ablation_speedups(ert: pd.DataFrame, ert_distinct: pd.DataFrame) -> Figure:
             this_alpha = rows_at(tables[name], alpha)
             t = this_alpha[this_alpha["unit"] == unit].set_index("sampler")
             _ratio_panel(axes[i, j], t, column, found, tag)
-            axes[i, j].set_ylabel(f"aRT({who}) ÷ aRT(arm), {per}\n"
+            axes[i, j].set_ylabel(f"aRT({arm_label(who)}) ÷ aRT(arm), {per}\n"
                                   f"({'IPOPT iterations' if unit == 'iterations' else 'CPU s'})", fontsize=8)
             axes[i, j].set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)
     fig.suptitle("Expected running time as ratios: above 1 the arm is faster (bootstrap 95 % CI)")
@@ -204,9 +201,9 @@ def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
     axes = fig.subplots(3, len(alphas), squeeze=False, sharex=True)
     panels = (("percent_within_cap", "ci95_low", "ci95_high", "high-quality rate within cap (%)\n(Wilson 95 %)"),
               ("percent_ratio", "percent_ratio_ci95_low", "percent_ratio_ci95_high",
-               "% within cap ÷ uniform's\n(Katz 95 %)"),
+               f"% within cap ÷ {BASELINE_ARM}'s\n(Katz 95 %)"),
               ("throughput_ratio", "throughput_ratio_ci95_low", "throughput_ratio_ci95_high",
-               "HQ per iteration ÷ uniform's\n(bootstrap 95 %)"))
+               f"HQ per iteration ÷ {BASELINE_ARM}'s\n(bootstrap 95 %)"))
     for j, alpha in enumerate(alphas):
         t = rows_at(capped, alpha)
         samplers = _samplers(t)
@@ -219,7 +216,7 @@ def fig22_iteration_capped(capped: pd.DataFrame) -> Figure:
                 y, low, high = (g[c].replace(np.inf, np.nan) if c in g else pd.Series(np.nan, index=g.index)
                                 for c in (col, lo, hi))
                 x = g["cap_iterations"] * 1.04 ** (k - (len(samplers) - 1) / 2)  # side by side on the log axis
-                ax.plot(x, y, "o-", color=_colour(s), label=_label(s), ms=3)
+                ax.plot(x, y, "o-", color=_colour(s), label=arm_label(s), ms=3)
                 unbounded = np.isinf(g[hi]) if hi in g else pd.Series(False, index=g.index)
                 ax.vlines(x, low, high.where(~unbounded, top), color=_colour(s), lw=1.2, alpha=0.7)
                 ax.plot(x[unbounded & low.notna()], np.full(int((unbounded & low.notna()).sum()), top), "^",
@@ -263,7 +260,7 @@ def ablation_anytime(curves: pd.DataFrame, bands: pd.DataFrame) -> Figure:
             g = t[t["sampler"] == s]
             for ax, (measure, unit, _) in zip(axes[i], ANYTIME_PANELS):
                 x = _ANYTIME_X[unit][0]
-                ax.step(g[x], g[measure], color=_colour(s), label=_label(s), where="post")
+                ax.step(g[x], g[measure], color=_colour(s), label=arm_label(s), where="post")
                 if len(b):
                     band = b[(b["sampler"] == s) & (b["unit"] == unit) & (b["measure"] == measure)]
                     ax.fill_between(band["budget"], band["low"], band["high"], color=_colour(s), alpha=0.15,
@@ -289,7 +286,7 @@ def ablation_beta_sweep(sweep: pd.DataFrame) -> Figure:
             g = t[t["sampler"] == s].sort_values("beta_kg")
             x = g["beta_kg"] + 0.25 * (k - len(samplers) / 2)
             ax.errorbar(x, g["percent"], yerr=[g["percent"] - g["ci95_low"], g["ci95_high"] - g["percent"]],
-                        fmt="o-", color=_colour(s), label=_label(s), ms=3, capsize=2, lw=1)
+                        fmt="o-", color=_colour(s), label=arm_label(s), ms=3, capsize=2, lw=1)
         ax.set_xlabel("β (kg)")
         ax.set_ylabel("% of starts into A(α, β)")
         ax.set_title(f"α = {alpha:g}, n = {int(t['n'].max())} starts per arm", fontsize=9)

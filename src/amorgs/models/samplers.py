@@ -23,7 +23,11 @@ and three non-neural (or half-neural) baselines that reuse known solutions (issu
 
 The LSTM is deterministic given its conditioning; all randomness of a learned sampler comes from ``rng``:
 first one draw of the torch seed (when a CVAE is sampled), then the uniform parts in layout order.
-:func:`build_sampler` loads the models from a directory of checkpoints named as in :data:`CHECKPOINTS`.
+
+Each class's ``build(problem, inputs)`` is its arm's builder in the table of arms
+(:data:`amorgs.ablation.arms.ARMS`, which :func:`amorgs.ablation.arms.build_sampler` resolves): ``inputs``
+carries the loaded models by name (:func:`load_model`, checkpoints named as in :data:`CHECKPOINTS`), the
+high-quality table, the training α and the arm options.
 """
 
 from __future__ import annotations
@@ -36,14 +40,6 @@ import numpy as np
 import pandas as pd
 import torch
 
-from amorgs.ablation.arms import (  # noqa: F401  (re-exported)
-    BASELINE_SAMPLER_NAMES,
-    NEEDS_HIGH_QUALITY,
-    NEEDS_MODELS,
-    PAPER_SAMPLER_NAMES,
-    SAMPLER_LABELS,
-    SAMPLER_NAMES,
-)
 from amorgs.alphas import alpha_label, same_alpha
 from amorgs.models import cvae, lstm
 from amorgs.models.cr3bp_models import lstm_conditioning, stored_from_vanilla
@@ -77,6 +73,10 @@ class UniformSampler:
     def __init__(self, problem: Problem):
         self.problem = problem
 
+    @classmethod
+    def build(cls, problem: Problem, inputs) -> UniformSampler:
+        return cls(problem)
+
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         return make_valid(self.problem.sample_uniform(alpha, n, rng), self.problem)
 
@@ -100,6 +100,10 @@ class CVAETimeMassUniformControl:
         self.problem = problem
         self.cvae = time_mass_cvae
 
+    @classmethod
+    def build(cls, problem: Problem, inputs) -> CVAETimeMassUniformControl:
+        return cls(problem, inputs.models["cvae_gmm"])
+
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         check_alpha(alpha, self.problem.alpha_range, self.problem.name)
         tm = _time_mass(self.cvae, alpha, n, rng)
@@ -117,6 +121,10 @@ class UniformTimeMassLSTMControl:
         self.problem = problem
         self.lstm = control_lstm
 
+    @classmethod
+    def build(cls, problem: Problem, inputs) -> UniformTimeMassLSTMControl:
+        return cls(problem, inputs.models["lstm"])
+
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         x = self.problem.sample_uniform(alpha, n, rng)
         x[:, 4:] = self.lstm.generate(lstm_conditioning(x[:, :4], alpha))
@@ -131,6 +139,10 @@ class VanillaCVAESampler:
     def __init__(self, problem: Problem, vanilla_cvae: cvae.VanillaCVAE):
         self.problem = problem
         self.cvae = vanilla_cvae
+
+    @classmethod
+    def build(cls, problem: Problem, inputs) -> VanillaCVAESampler:
+        return cls(problem, inputs.models["vanilla_cvae"])
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         check_alpha(alpha, self.problem.alpha_range, self.problem.name)
@@ -147,6 +159,10 @@ class AmorGSSampler:
         self.problem = problem
         self.cvae = time_mass_cvae
         self.lstm = control_lstm
+
+    @classmethod
+    def build(cls, problem: Problem, inputs) -> AmorGSSampler:
+        return cls(problem, inputs.models["cvae_gmm"], inputs.models["lstm"])
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         check_alpha(alpha, self.problem.alpha_range, self.problem.name)
@@ -205,6 +221,10 @@ class NearestAlphaSampler:
         self.problem = problem
         self.by_alpha = _training_rows(high_quality, train_alphas, problem.variable_names)
 
+    @classmethod
+    def build(cls, problem: Problem, inputs) -> NearestAlphaSampler:
+        return cls(problem, inputs.high_quality, inputs.train_alphas)
+
     def pool(self, alpha: float) -> tuple[float, int]:
         """(the training α whose high-quality rows are reused at ``alpha``, the number of those rows)."""
         source = nearest_training_alpha(self.by_alpha, check_alpha(alpha, self.problem.alpha_range, self.problem.name))
@@ -233,6 +253,10 @@ class NearestAlphaPerturbedSampler(NearestAlphaSampler):
         if not (scale >= 0 and math.isfinite(scale)):
             raise ValueError(f"perturbation scale must be a finite number ≥ 0, got {scale!r}")
         self.scale = float(scale)
+
+    @classmethod
+    def build(cls, problem: Problem, inputs) -> NearestAlphaPerturbedSampler:
+        return cls(problem, inputs.high_quality, inputs.train_alphas, inputs.perturbation_scale)
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         x = self._draw(alpha, n, rng)
@@ -270,6 +294,10 @@ class GMMLSTMSampler:
                 continue
             gm = GaussianMixture(k, covariance_type="full", reg_covar=1e-4, random_state=0).fit(tm)
             self.mixtures[a] = (gm.weights_ / gm.weights_.sum(), gm.means_, np.linalg.cholesky(gm.covariances_))
+
+    @classmethod
+    def build(cls, problem: Problem, inputs) -> GMMLSTMSampler:
+        return cls(problem, inputs.high_quality, inputs.train_alphas, inputs.models["lstm"], inputs.gmm_components)
 
     def bracket(self, alpha: float) -> tuple[tuple[float, float], tuple[float, float]]:
         """((a, w_a), (b, w_b)): the training α whose mixtures are blended at ``alpha`` and their weights."""
@@ -314,41 +342,15 @@ def _load_cvae(path: Path, cls: type[cvae.GMMPriorCVAE] | type[cvae.VanillaCVAE]
     return model
 
 
-def build_sampler(
-    name: str,
-    problem: Problem,
-    models_dir: str | Path | None = None,
-    high_quality: pd.DataFrame | None = None,
-    train_alphas=None,
-    perturbation_scale: float = 0.02,
-    gmm_components: int = 5,
-) -> Sampler:
-    """The sampler called ``name`` (one of :data:`SAMPLER_NAMES`), its models loaded from ``models_dir``.
+#: Model name → how its checkpoint is read (on the CPU, eval mode).
+LOADERS = {
+    "cvae_gmm": lambda path: _load_cvae(path, cvae.GMMPriorCVAE),
+    "vanilla_cvae": lambda path: _load_cvae(path, cvae.VanillaCVAE),
+    "lstm": lstm.load,
+}
 
-    Checkpoints are read on the CPU: ``cvae_gmm.pt`` (time & mass CVAE), ``vanilla_cvae.pt`` and ``lstm.pt``,
-    only those the sampler needs (:data:`NEEDS_MODELS`); ``uniform`` needs none.  The baselines of
-    :data:`NEEDS_HIGH_QUALITY` also need ``high_quality`` (the filtered table) and ``train_alphas``.
-    """
-    if name not in SAMPLER_NAMES:
-        raise ValueError(f"unknown sampler {name!r}; choose one of {SAMPLER_NAMES}")
-    if NEEDS_MODELS[name] and models_dir is None:
-        raise ValueError(f"sampler {name!r} needs a models directory")
-    if name in NEEDS_HIGH_QUALITY and (high_quality is None or train_alphas is None):
-        raise ValueError(f"sampler {name!r} needs the high-quality table and the training α")
-    models = Path(models_dir) if models_dir is not None else None
-    if name == "uniform":
-        return UniformSampler(problem)
-    if name == "vanilla_cvae":
-        return VanillaCVAESampler(problem, _load_cvae(models / CHECKPOINTS["vanilla_cvae"], cvae.VanillaCVAE))
-    if name == "cvae_uniform_control":
-        return CVAETimeMassUniformControl(problem, _load_cvae(models / CHECKPOINTS["cvae_gmm"], cvae.GMMPriorCVAE))
-    if name == "uniform_lstm_control":
-        return UniformTimeMassLSTMControl(problem, lstm.load(models / CHECKPOINTS["lstm"]))
-    if name == "amorgs":
-        gmm = _load_cvae(models / CHECKPOINTS["cvae_gmm"], cvae.GMMPriorCVAE)
-        return AmorGSSampler(problem, gmm, lstm.load(models / CHECKPOINTS["lstm"]))
-    if name == "nearest_alpha":
-        return NearestAlphaSampler(problem, high_quality, train_alphas)
-    if name == "nearest_alpha_perturbed":
-        return NearestAlphaPerturbedSampler(problem, high_quality, train_alphas, perturbation_scale)
-    return GMMLSTMSampler(problem, high_quality, train_alphas, lstm.load(models / CHECKPOINTS["lstm"]), gmm_components)
+
+def load_model(models_dir: str | Path, name: str):
+    """The model ``name`` (a key of :data:`CHECKPOINTS`) from its checkpoint in ``models_dir``;
+    ``FileNotFoundError`` if it is missing, ``ValueError`` if it holds another kind of model."""
+    return LOADERS[name](Path(models_dir) / CHECKPOINTS[name])

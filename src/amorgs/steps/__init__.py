@@ -3,6 +3,9 @@ outputs and expected jobs.
 
 A step says, for one rule:
 
+- ``resources(cfg, wildcards)``: the threads, memory (MB) and wall-clock limit (minutes) of one job, from the
+  config (a :class:`~amorgs.config.Job`; :func:`resources_of` for the ``resources`` section), which the rule
+  takes through ``step_threads``/``step_resources`` (``workflow/rules/common.smk``);
 - ``settings(cfg, wildcards)``: the part of the validated :class:`~amorgs.config.Config` the job needs, as
   one typed object (a :class:`~amorgs.config.Section` subclass, :attr:`Step.settings_type`).  The rule passes
   it to the job as JSON (so a changed setting re-runs the job: Snakemake's params trigger), and the job
@@ -21,8 +24,8 @@ params function no rule name); :func:`check_rules` checks it against Snakemake's
 
 Adding a step: add it to the ``STEPS`` of its stage's module under ``amorgs/steps/`` (a new module needs
 ``STEPS`` and ``STAGE``, its place in the workflow's order; it is found by itself), and add one rule of the
-same name (``output: **step_outputs(...)``,
-``params: job=step_job(...)``, ``shell: STEP``).
+same name (its inputs and log; ``output: **step_outputs(...)``, ``threads: step_threads(...)``,
+``resources: **step_resources(...)``, ``params: **step_params(...)``, ``shell: STEP``).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from amorgs.config import Config, Section
+from amorgs.config import Job as JobResources
 from amorgs.errors import InputError
 
 Wildcards = Mapping[str, str]
@@ -65,9 +69,15 @@ class Step:
     run: Callable[[Job, Any], None]
     jobs: Callable[[Config], list[dict[str, str]]]
     outputs: Callable[[Wildcards], Outputs]
+    resources: Callable[[Config, Wildcards], JobResources]
     #: (caption file under workflow/report/ without .rst, category) of the figures in ``snakemake --report``.
     report: tuple[str, str] | None = None
     description: str = field(default="")
+
+
+def resources_of(key: str) -> Callable[[Config, Wildcards], JobResources]:
+    """``resources`` of a step whose every job takes the config's ``resources.<key>`` (e.g. ``"merge"``)."""
+    return lambda cfg, wildcards: getattr(cfg.resources, key)
 
 
 def once_if(section: str) -> Callable[[Config], list[dict[str, str]]]:
@@ -189,6 +199,12 @@ def output_templates(rule: str) -> Outputs:
 
 
 # ---------------------------------------------------------------------------------------- running a job
+
+
+def job_resources(rule: str, cfg: Config, wildcards: Wildcards) -> JobResources:
+    """Threads, memory (MB) and wall-clock limit (minutes) of one job of ``rule`` (the rule's ``threads`` and
+    ``resources``)."""
+    return registry()[rule].resources(cfg, dict(wildcards.items()))
 
 
 def job_settings(rule: str, cfg: Config, wildcards: Wildcards) -> dict:

@@ -12,13 +12,13 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from amorgs import layout
-from amorgs.ablation.arms import NEEDS_HIGH_QUALITY, NEEDS_MODELS, REUSE_SAMPLER_NAMES, SAMPLER_NAMES
+from amorgs.ablation.arms import SAMPLER_NAMES, get_arm
 from amorgs.alphas import alpha_label
 from amorgs.config import Config, Section
 from amorgs.data.seeds import cell_seed
 from amorgs.errors import InputError
 from amorgs.solvers.options import IpoptOptions
-from amorgs.steps import Job, Step, Wildcards, once_if
+from amorgs.steps import Job, Step, Wildcards, once_if, resources_of
 from amorgs.steps.outputs import finite_metrics, use_agg, write_figures
 
 
@@ -49,7 +49,7 @@ def _cell_settings(cfg: Config, w: Wildcards) -> CellSettings:
     replicate, fraction = "mseed" in w, float(w.get("fraction", 1.0))
     name, offset = w["sampler"], 0
     model_seed = int(w["mseed"]) if replicate else cfg.cr3bp_models.seed
-    if name in REUSE_SAMPLER_NAMES:  # one draw over the model seeds' cells: each takes its slice
+    if get_arm(name).pooled:  # one draw over the model seeds' cells: each takes its slice
         offset = cfg.cr3bp_models.seeds.index(model_seed) * a.n_starts
     elif replicate:
         name += f"@seed={w['mseed']}"
@@ -64,17 +64,18 @@ def _cell_settings(cfg: Config, w: Wildcards) -> CellSettings:
 def run_cell(job: Job, run) -> None:
     from amorgs.ablation.experiment import run_cell as solve_cell
     from amorgs.data.io import write_parquet
-    from amorgs.models.samplers import build_sampler
+    from amorgs.ablation.arms import build_sampler
     from amorgs.problems import get_problem
 
     s: CellSettings = job.settings
+    arm = get_arm(s.sampler)
     models = job.input.get("models", [])
-    if s.sampler in NEEDS_HIGH_QUALITY and "high_quality" not in job.input:
+    if arm.high_quality and "high_quality" not in job.input:
         raise InputError(f"ablation_cell: {s.sampler} needs the high-quality table (input high_quality)")
-    if len(models) < len(NEEDS_MODELS[s.sampler]):
-        raise InputError(f"ablation_cell: {s.sampler} needs the checkpoints {NEEDS_MODELS[s.sampler]} (input models)")
+    if len(models) < len(arm.models):
+        raise InputError(f"ablation_cell: {s.sampler} needs the checkpoints {arm.models} (input models)")
     hq = None
-    if s.sampler in NEEDS_HIGH_QUALITY:
+    if arm.high_quality:
         import pandas as pd
 
         hq = pd.read_parquet(job.input["high_quality"])
@@ -119,9 +120,15 @@ def _test_labels(cfg: Config) -> list[str]:
     return [alpha_label(a) for a in cfg.problems.cr3bp.alphas.test]
 
 
-def cell_models(sampler: str, model_template: str, wildcards: Wildcards) -> list[str]:
-    """The checkpoints ``sampler`` loads (none for uniform and the reuse baselines)."""
-    return [model_template.format_map({**dict(wildcards), "model": m}) for m in NEEDS_MODELS[sampler]]
+def cell_inputs(sampler: str, model_template: str, wildcards: Wildcards) -> dict[str, str | list[str]]:
+    """The named inputs of a cell of ``sampler``: ``models``, the checkpoints its arm loads (none for uniform
+    and the reuse baselines), and for the arms that draw on it ``high_quality``, the filtered table."""
+    arm = get_arm(sampler)
+    inputs: dict[str, str | list[str]] = {
+        "models": [model_template.format_map({**dict(wildcards), "model": m}) for m in arm.models]}
+    if arm.high_quality:
+        inputs["high_quality"] = layout.HIGH_QUALITY.format(problem="cr3bp")
+    return inputs
 
 
 class ReportSettings(Section):
@@ -153,8 +160,8 @@ def _report_settings(cfg: Config, w: Wildcards) -> ReportSettings:
 def upfront_cpu(alpha_tables: list[str], train_alphas, training_reports: list[str]) -> dict[str, float]:
     """Arm → CPU seconds spent before the first new α: every solve at the training α (the data the reuse
     baselines draw from and the models learn from), plus, for the learned arms, the training CPU of the
-    models they load (:data:`~amorgs.ablation.arms.NEEDS_MODELS`, the models of the main training seed).
-    Uniform multi-start needs nothing."""
+    models they load (:attr:`~amorgs.ablation.arms.Arm.models`, the models of the main training seed).  An arm
+    that draws on neither (uniform multi-start) needs nothing."""
     import pandas as pd
 
     from amorgs.alphas import rows_at_any
@@ -163,7 +170,7 @@ def upfront_cpu(alpha_tables: list[str], train_alphas, training_reports: list[st
     data_s = sum(float(rows_at_any(pd.read_parquet(p, columns=["alpha", "cpu_s"]), train_alphas)["cpu_s"].sum())
                  for p in alpha_tables)
     training = {r["model"]: float(r["train_cpu_s"]) for r in map(read_json, training_reports)}
-    return {s: 0.0 if s == "uniform" else data_s + sum(training.get(m, 0.0) for m in NEEDS_MODELS[s])
+    return {s: data_s + sum(training.get(m, 0.0) for m in get_arm(s).models) if get_arm(s).upfront else 0.0
             for s in SAMPLER_NAMES}
 
 
@@ -211,17 +218,21 @@ STAGE = 7
 STEPS = (
     Step("ablation_cell", CellSettings, _cell_settings, run_cell, cell_jobs,
          lambda w: {"table": layout.ABLATION_CELL.format_map(w)},
+         resources=lambda cfg, w: cfg.ablation.job(),
          description="solve the guesses of one sampler at one test α → cell table"),
     Step("ablation_cell_replicate", CellSettings, _cell_settings, run_cell, replicate_cell_jobs,
          lambda w: {"table": layout.ABLATION_REPLICATE_CELL.format_map(w)},
+         resources=lambda cfg, w: cfg.ablation.job(),
          description="a cell with the models of an extra training seed"),
     Step("ablation_cell_fraction", CellSettings, _cell_settings, run_cell, fraction_cell_jobs,
          lambda w: {"table": layout.ABLATION_FRACTION_CELL.format_map(w)},
+         resources=lambda cfg, w: cfg.ablation.job(),
          description="a learned arm with models trained on a fraction of the data (learning curve)"),
     Step("ablation_report", ReportSettings, _report_settings, run_report, once_if("ablation"),
          lambda w: {"summary": layout.ABLATION_SUMMARY,
                     "tables": [layout.TABLE.format(name=n) for n in layout.ABLATION_TABLES],
                     "figures": [layout.FIGURE.format(name=n) for n in layout.ABLATION_FIGURES]},
+         resources=resources_of("figure"),
          report=("ablation", "CR3BP ablation"),
          description="Table 6, capped studies, coverage, rates, β sweep, aRT, anytime curves; Figs. 21–23"),
 )

@@ -7,7 +7,7 @@ from __future__ import annotations
 from amorgs import layout
 from amorgs.analysis.structure_params import StructureParams
 from amorgs.config import Config, Section
-from amorgs.steps import Job, Step, Wildcards, once_if
+from amorgs.steps import Job, Step, Wildcards, once_if, resources_of
 from amorgs.steps.outputs import by_name, finite_metrics, use_agg, write_figures
 
 
@@ -49,6 +49,7 @@ STEPS = (
          lambda w: {"metrics": layout.CR3BP_ANALYSIS_METRICS,
                     "tables": [layout.CR3BP_ANALYSIS_TABLE.format(name=n) for n in layout.ANALYSIS_TABLES],
                     "figures": [layout.FIGURE.format(name=n) for n in layout.ANALYSIS_FIGURES]},
+         resources=resources_of("analyze"),
          report=("cr3bp_structure", "CR3BP structure"),
          description="structure analysis of the CR3BP solutions; Figs. 3–13"),
 )

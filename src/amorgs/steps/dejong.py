@@ -7,7 +7,7 @@ from amorgs import layout
 from amorgs.alphas import metric_key, rows_at_any
 from amorgs.config import Config, DejongCVAE, Section
 from amorgs.models.names import DEJONG_PRESETS
-from amorgs.steps import Job, Step, Wildcards, once_if
+from amorgs.steps import Job, Step, Wildcards, once_if, resources_of
 from amorgs.steps.outputs import use_agg, write_png
 
 
@@ -145,16 +145,20 @@ STAGE = 3
 STEPS = (
     Step("train_dejong_cvae", DejongTrainSettings, _train_settings, run_train, once_if("dejong_cvae"),
          lambda w: {"model": layout.DEJONG_MODEL},
+         resources=resources_of("train"),
          description="GMM-prior CVAE on the filtered De Jong minima → checkpoint"),
     Step("predict_dejong_cvae", DejongPredictSettings, _predict_settings, run_predict, once_if("dejong_cvae"),
          lambda w: {"samples": layout.DEJONG_SAMPLES, "metrics": layout.DEJONG_METRICS},
+         resources=resources_of("predict"),
          description="CVAE samples at the test α + hit metrics"),
     Step("fig02_foxholes", NoSettings, lambda cfg, w: NoSettings(), run_fig02, once_if("problems.dejong"),
          lambda w: {"figure": layout.FIGURE.format(name="fig02_foxholes")},
+         resources=resources_of("figure"),
          report=("fig02_foxholes", "De Jong"), description="Fig. 2: the classic 25-foxhole function"),
     Step("fig16_dejong_predictions", Fig16Settings,
          lambda cfg, w: Fig16Settings(train_alphas=cfg.problems.dejong.alphas.train_values()),
          run_fig16, once_if("dejong_cvae"),
          lambda w: {"figure": layout.FIGURE.format(name="fig16_dejong_predictions")},
+         resources=resources_of("figure"),
          report=("fig16_dejong_predictions", "De Jong"), description="Fig. 16: training minima and CVAE samples"),
 )

@@ -8,7 +8,7 @@ from amorgs import layout
 from amorgs.alphas import metric_key
 from amorgs.config import Config, Section
 from amorgs.problems import PROBLEMS
-from amorgs.steps import Job, Step, Wildcards
+from amorgs.steps import Job, Step, Wildcards, resources_of
 
 
 class FilterSettings(Section):
@@ -52,5 +52,6 @@ STEPS = (
     Step("filter", FilterSettings, filter_settings, run_filter,
          lambda cfg: [{"problem": name} for name in cfg.problems.enabled()],
          lambda w: {"table": layout.HIGH_QUALITY.format_map(w), "report": layout.QUALITY_REPORT.format_map(w)},
+         resources=resources_of("filter"),
          description="β-filter every α table of a problem → high-quality table + quality report"),
 )

@@ -13,7 +13,7 @@ from amorgs.config import Config, Section
 from amorgs.data.seeds import shard_seed
 from amorgs.problems import PROBLEMS
 from amorgs.solvers.options import BfgsOptions, IpoptOptions
-from amorgs.steps import Job, Step, Wildcards
+from amorgs.steps import Job, Step, Wildcards, resources_of
 
 
 class GenerateSettings(Section):
@@ -122,8 +122,10 @@ STAGE = 1
 STEPS = (
     Step("generate", GenerateSettings, generate_settings, run_generate, generate_jobs,
          lambda w: {"table": layout.SHARD.format_map(w)},
+         resources=lambda cfg, w: getattr(cfg.problems, w["problem"]).generate.job(),
          description="multi-start solves of one (problem, α, shard) → shard table"),
     Step("merge", MergeSettings, merge_settings, run_merge, merge_jobs,
          lambda w: {"table": layout.ALPHA_TABLE.format_map(w)},
+         resources=resources_of("merge"),
          description="the shards of one (problem, α) and its library files → α table"),
 )

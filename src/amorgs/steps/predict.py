@@ -8,7 +8,7 @@ import os
 from amorgs import layout
 from amorgs.alphas import metric_key, rows_at
 from amorgs.config import Config, Section
-from amorgs.steps import Job, Step, Wildcards, once_if
+from amorgs.steps import Job, Step, Wildcards, once_if, resources_of
 from amorgs.steps.outputs import finite_metrics, use_agg, write_figures
 
 
@@ -35,6 +35,7 @@ def run_predict(job: Job, run) -> None:
     import numpy as np
     import pandas as pd
 
+    from amorgs.ablation.arms import build_sampler
     from amorgs.analysis.prediction import prediction_table
     from amorgs.data.io import write_json, write_parquet
     from amorgs.figures.prediction import (
@@ -44,7 +45,7 @@ def run_predict(job: Job, run) -> None:
         fig20_control_statistics,
     )
     from amorgs.models import cvae
-    from amorgs.models.samplers import CVAETimeMassUniformControl, build_sampler
+    from amorgs.models.samplers import CVAETimeMassUniformControl
     from amorgs.problems import get_problem
 
     s: PredictSettings = job.settings
@@ -99,6 +100,7 @@ STEPS = (
     Step("predict_cr3bp", PredictSettings, _settings, run_predict, once_if("cr3bp_models"),
          lambda w: {"samples": layout.CR3BP_SAMPLES, "metrics": layout.CR3BP_PREDICTION_METRICS,
                     "figures": [layout.FIGURE.format(name=n) for n in layout.PREDICTION_FIGURES]},
+         resources=resources_of("predict"),
          report=("cr3bp_predictions", "CR3BP predictions"),
          description="samples of the models at the test α vs the ground truth; Figs. 17–20"),
 )

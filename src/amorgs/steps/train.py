@@ -13,7 +13,7 @@ from amorgs import layout
 from amorgs.alphas import alpha_label, rows_at_any
 from amorgs.config import Config, Cr3bpModels, Section
 from amorgs.models.names import CR3BP_MODELS
-from amorgs.steps import Job, Step, Wildcards
+from amorgs.steps import Job, Step, Wildcards, resources_of
 
 
 class TrainSettings(Section):
@@ -97,12 +97,15 @@ STEPS = (
     Step("train_cr3bp", TrainSettings, _settings, run_train,
          lambda cfg: [{"model": m} for m in CR3BP_MODELS] if cfg.cr3bp_models.enabled else [],
          lambda w: _outputs(layout.CR3BP_MODEL.format_map(w)),
+         resources=resources_of("train"),
          description="one CR3BP model on the high-quality rows at the training α → checkpoint"),
     Step("train_cr3bp_fraction", TrainSettings, _settings, run_train, fraction_model_jobs,
          lambda w: _outputs(layout.CR3BP_FRACTION_MODEL.format_map(w)),
+         resources=resources_of("train"),
          description="a model on a seeded fraction of the rows of every training α (Fig. 18, learning curve)"),
     Step("train_cr3bp_replicate", TrainSettings, _settings, run_train,
          lambda cfg: [{"mseed": str(s), "model": m} for s in cfg.cr3bp_models.extra_seeds for m in replicate_models_needed(cfg)],
          lambda w: _outputs(layout.CR3BP_REPLICATE_MODEL.format_map(w)),
+         resources=resources_of("train"),
          description="one model of an extra training seed (the ablation's replicates)"),
 )
