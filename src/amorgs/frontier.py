@@ -133,7 +133,7 @@ def read_run(run_dir: str | Path, design: str | None = None) -> FrontierRun:
                        cells=pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True))
 
 
-def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] = ("amorgs",), reuse: str = "nearest_alpha",
+def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] | None = None, reuse: str = "nearest_alpha",
               n_boot: int = 2000, seed: int = 0, track: bool = True, store_dir: str | Path = "results/mlflow"
               ) -> pd.DataFrame:
     """The frontier of the finished fold directories ``run_dirs``: table, Markdown and figure under ``dest``

@@ -131,7 +131,7 @@ def cmd_frontier_plan(args: argparse.Namespace) -> None:
 def cmd_frontier(args: argparse.Namespace) -> None:
     from amorgs.frontier import OUTPUTS, aggregate
 
-    table = aggregate(args.runs, args.dest, tuple(args.learned), args.reuse, args.n_boot, args.seed,
+    table = aggregate(args.runs, args.dest, tuple(args.learned) if args.learned else None, args.reuse, args.n_boot, args.seed,
                       track=not args.no_mlflow, store_dir=args.mlflow_dir)
     ratios = table[table["ratio_to_reuse"].notna() & (table["unit"] == "iterations")
                    & (table["target"] == "high_quality")]
@@ -313,7 +313,8 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                                    "and the figure go to --dest and to MLflow.")
     p.add_argument("runs", nargs="+", help="finished fold directories (each with config.yaml and results/)")
     p.add_argument("--dest", default="results/frontier", help="where frontier.csv, frontier.md, fig_frontier.png go")
-    p.add_argument("--learned", nargs="+", default=["amorgs"], help="learned arms compared with reuse")
+    p.add_argument("--learned", nargs="+", default=None,
+                   help="arms compared with reuse (default: every arm of the folds but the reuse arm and uniform)")
     p.add_argument("--reuse", default="nearest_alpha", help="the reuse arm")
     p.add_argument("--n-boot", type=int, default=2000, help="bootstrap resamples")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")

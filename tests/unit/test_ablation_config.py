@@ -9,7 +9,10 @@ from config_files import load, mapping, write
 
 from amorgs import config as C
 from amorgs import layout, steps
-from amorgs.ablation.arms import NEEDS_MODELS, SAMPLER_LABELS, SAMPLER_NAMES
+from amorgs.ablation.arms import BASELINE_SAMPLER_NAMES, NEEDS_MODELS, PAPER_SAMPLER_NAMES, SAMPLER_LABELS, SAMPLER_NAMES
+
+#: The arms of the committed studies (reference/study*): the paper's five and the three reuse baselines.
+STUDY_ARMS = PAPER_SAMPLER_NAMES + BASELINE_SAMPLER_NAMES
 
 
 def test_the_registry_names_every_arm_once():
@@ -26,7 +29,7 @@ def test_default_and_smoke_run_every_arm_small():
 
 def test_study_config_size(tmp_path):
     cfg = load("study")
-    assert set(cfg.ablation.samplers) == set(SAMPLER_NAMES)
+    assert set(cfg.ablation.samplers) == set(STUDY_ARMS)
     assert len(cfg.cr3bp_models.seeds) >= 3
     # the paper's widths: the override the study's header documents validates
     paper = mapping("study")
@@ -34,7 +37,7 @@ def test_study_config_size(tmp_path):
     assert C.load_config(write(tmp_path, paper, "study-paper.yaml")).cr3bp_models.preset == "paper"
     assert cfg.ablation.n_starts * len(cfg.cr3bp_models.seeds) >= 200
     cells = steps.outputs_of("ablation_cell", cfg, "table") + steps.outputs_of("ablation_cell_replicate", cfg, "table")
-    assert len(cells) == len(cfg.cr3bp_models.seeds) * len(cfg.problems.cr3bp.alphas.test) * len(SAMPLER_NAMES)
+    assert len(cells) == len(cfg.cr3bp_models.seeds) * len(cfg.problems.cr3bp.alphas.test) * len(STUDY_ARMS)
     assert "results/cr3bp/ablation/seed=12/alpha=0.150/gmm_lstm.parquet" in cells
     models = steps.outputs_of("train_cr3bp_replicate", cfg, "model")
     assert "results/cr3bp/models/seed=13/lstm.pt" in models and len(models) == 2 * 3
@@ -47,7 +50,7 @@ def test_replicate_jobs_are_expected():
     cfg = load("study")
     jobs = steps.expected_jobs(cfg)
     rep = [w for rule, w in jobs if rule == "ablation_cell_replicate"]
-    assert len(rep) == 2 * 2 * len(SAMPLER_NAMES)
+    assert len(rep) == 2 * 2 * len(STUDY_ARMS)
     assert {"alpha": "0.850", "sampler": "nearest_alpha", "mseed": "13"} in rep
     trained = [w for rule, w in jobs if rule == "train_cr3bp_replicate"]
     assert {"model": "lstm", "mseed": "12"} in trained and len(trained) == 2 * 3

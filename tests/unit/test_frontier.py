@@ -213,7 +213,8 @@ def test_frontier_table_on_real_solves(runs):
     assert metrics[key] == pytest.approx(t.loc[("loo-0.500", "amorgs", "high_quality", "iterations"), "ratio_to_reuse"])
     assert "frontier_ratio_ci95_low/sparse-3/alpha_0.300/amorgs/distinct_cpu_s" in metrics
     with pytest.raises(ValueError, match="no cells of \\['amorgs'\\]"):
-        frontier_table([FrontierRun("x", "x", (0.4,), BETA, 0.02, runs[0].cells.query("sampler != 'amorgs'"))])
+        frontier_table([FrontierRun("x", "x", (0.4,), BETA, 0.02, runs[0].cells.query("sampler != 'amorgs'"))],
+                       learned=("amorgs",))
 
 
 def test_art_interval_brackets_the_art_and_is_infinite_without_a_find(runs):

@@ -9,7 +9,9 @@ from __future__ import annotations
 PAPER_SAMPLER_NAMES = ("uniform", "cvae_uniform_control", "uniform_lstm_control", "vanilla_cvae", "amorgs")
 #: Arms added to ask whether learning beats reusing known solutions (issue 11).
 BASELINE_SAMPLER_NAMES = ("nearest_alpha", "nearest_alpha_perturbed", "gmm_lstm")
-SAMPLER_NAMES = PAPER_SAMPLER_NAMES + BASELINE_SAMPLER_NAMES
+#: Arms built to beat reuse (issue 21 §3).
+BEAT_REUSE_SAMPLER_NAMES = ("continuation",)
+SAMPLER_NAMES = PAPER_SAMPLER_NAMES + BASELINE_SAMPLER_NAMES + BEAT_REUSE_SAMPLER_NAMES
 SAMPLER_LABELS = {
     "uniform": "Uniform",
     "uniform_lstm_control": "Uniform time & mass, LSTM control",
@@ -19,13 +21,14 @@ SAMPLER_LABELS = {
     "nearest_alpha": "Nearest training α, reused",
     "nearest_alpha_perturbed": "Nearest training α + noise",
     "gmm_lstm": "GMM time & mass, LSTM control",
+    "continuation": "Nearest training α moved by a secant in α",
 }
 #: Arms that read the filtered high-quality table (restricted to the training α).
-NEEDS_HIGH_QUALITY = BASELINE_SAMPLER_NAMES
+NEEDS_HIGH_QUALITY = BASELINE_SAMPLER_NAMES + ("continuation",)
 #: Arms that reuse that table's rows as guesses, drawn from a finite pool (issue 21): their cells of every
 #: model seed are slices of ONE seeded draw, so the pooled starts are drawn without replacement until the
 #: pool is exhausted.
-REUSE_SAMPLER_NAMES = ("nearest_alpha", "nearest_alpha_perturbed")
+REUSE_SAMPLER_NAMES = ("nearest_alpha", "nearest_alpha_perturbed", "continuation")
 #: Arm → the checkpoints (keys of ``amorgs.models.samplers.CHECKPOINTS``) it loads.
 NEEDS_MODELS = {
     "uniform": (),
@@ -36,6 +39,7 @@ NEEDS_MODELS = {
     "nearest_alpha": (),
     "nearest_alpha_perturbed": (),
     "gmm_lstm": ("lstm",),
+    "continuation": (),
 }
 
 

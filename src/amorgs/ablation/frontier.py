@@ -99,7 +99,7 @@ class FrontierRun:
 
 
 def frontier_table(
-    runs: list[FrontierRun], learned: tuple[str, ...] = ("amorgs",), reuse: str = "nearest_alpha",
+    runs: list[FrontierRun], learned: tuple[str, ...] | None = None, reuse: str = "nearest_alpha",
     baseline: str = "uniform", n_boot: int = 2000, seed: int = 0,
 ) -> pd.DataFrame:
     """One row per (design, run, test α, arm, target, unit): the frontier's data.
@@ -112,9 +112,11 @@ def frontier_table(
     its bootstrap 95 % interval ``aRT_ci95_low/high`` (:func:`~amorgs.ablation.statistics.art_interval`),
     ``speedup`` = aRT(baseline) ÷ aRT(arm) with its interval, and — for the ``learned`` arms —
     ``ratio_to_reuse`` = aRT(arm) ÷ aRT(reuse) with its interval (< 1: the learned arm wins; NaN elsewhere).
-    The reuse arm, the baseline and every arm in ``learned`` must be in each run's cells.  Bootstraps are
-    seeded by ``seed``: one table from one set of runs.
+    The reuse arm, the baseline and every arm in ``learned`` (default: every other arm of the first run) must
+    be in each run's cells.  Bootstraps are seeded by ``seed``: one table from one set of runs.
     """
+    if learned is None:
+        learned = tuple(sorted(set(runs[0].cells["sampler"]) - {reuse, baseline})) if runs else ()
     rows = []
     for r in runs:
         cells = r.cells.assign(alpha=r.cells["alpha"].map(alpha_value))
