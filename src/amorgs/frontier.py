@@ -141,9 +141,7 @@ def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] | None = None
     from amorgs.ablation.report import markdown_table
     from amorgs.data.io import atomic_path
     from amorgs.figures.frontier import fig_frontier
-    from amorgs.steps.outputs import use_agg
 
-    use_agg()
     runs = [read_run(d) for d in run_dirs]
     table = frontier_table(runs, learned=learned, reuse=reuse, n_boot=n_boot, seed=seed)
     dest = Path(dest)

@@ -241,6 +241,7 @@ def test_the_frontier_figure(runs):
     assert "relative gap" in right.get_xlabel() and "(N)" in left.get_xlabel()
     assert any(list(line.get_ydata()) == [1.0, 1.0] for line in left.lines)  # the line at 1
     learned = table[(table["sampler"] == "amorgs") & (table["unit"] == "iterations") & (table["target"] == "high_quality")]
-    points = [line for line in left.lines if len(line.get_xdata()) == 1]
+    points = [line for line in left.lines if len(line.get_xdata()) == 1]  # one arm: not dodged
     assert sorted(float(p.get_xdata()[0]) for p in points) == pytest.approx(sorted(learned["gap"]))
+    assert left.get_xlim()[0] == 0
     assert {t.get_text() for t in left.texts} == {"0.5", "0.3"}
