@@ -3,7 +3,8 @@
 ``library-export`` (check finished library-config shards and consolidate them into ``data/library``),
 ``library-grow`` (batches of library generation, each exported), ``models-export`` (ship a run's checkpoints),
 ``design`` (N good transfers at one α), ``boundary-conditions`` (recompute or check the resource), ``ui``
-(the MLflow UI on ``results/mlflow``), ``check-outputs`` (every output a config promises exists, is
+(the MLflow UI on ``results/mlflow``), ``frontier-plan`` and ``frontier`` (the frontier study's fold configs,
+and the aggregation of its finished folds), ``check-outputs`` (every output a config promises exists, is
 non-empty and is tracked), ``config-schema`` (the JSON Schema generated from the config model) and
 ``reference-export`` (commit a finished run's tables and figures with provenance, or ``--check`` them).  Heavy
 imports happen inside the command that needs them.
@@ -31,6 +32,9 @@ EXAMPLES = {
     "                                                    # 3: complete but untracked in MLflow",
     "config-schema": "amorgs config-schema --write     # after changing src/amorgs/config.py",
     "config-show": "amorgs config-show config/smoke.yaml     # what the smoke run uses, every key",
+    "frontier-plan": "amorgs frontier-plan --config config/frontier.yaml --runs-dir runs/frontier --loo 0.1 0.5 1.0 "
+    "--sparse 3 5",
+    "frontier": "amorgs frontier runs/frontier/* --dest results/frontier",
     "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
     "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
 }
@@ -114,6 +118,29 @@ def cmd_design(args: argparse.Namespace) -> None:
         print(f"amorgs design: only {result.found} of {args.n} found before the budget ran out "
               f"({result.stop_reason}); raise --max-starts / --max-cpu-s or lower -n", file=sys.stderr)
         raise SystemExit(3)
+
+
+def cmd_frontier_plan(args: argparse.Namespace) -> None:
+    from amorgs.frontier import plan, run_command
+
+    folds = plan(args.config, args.runs_dir, tuple(args.loo), tuple(args.sparse), tuple(args.set))
+    for fold, run in folds:
+        print(f"# {fold.name}: train {list(fold.train)}, test {list(fold.test)}")
+        print(run_command(run, args.snakemake))
+    print(f"# then: amorgs frontier {' '.join(str(run) for _, run in folds)} --dest results/frontier")
+
+
+def cmd_frontier(args: argparse.Namespace) -> None:
+    from amorgs.frontier import OUTPUTS, aggregate
+
+    table = aggregate(args.runs, args.dest, tuple(args.learned) if args.learned else None, args.reuse, args.n_boot, args.seed,
+                      track=not args.no_mlflow, store_dir=args.mlflow_dir)
+    ratios = table[table["ratio_to_reuse"].notna() & (table["unit"] == "iterations")
+                   & (table["target"] == "high_quality")]
+    for r in ratios.itertuples(index=False):
+        print(f"{r.run:>12}  α = {r.alpha:<5g} gap {r.gap:.3g} N ({r.gap_relative:.0%})  {r.sampler}: aRT ÷ reuse "
+              f"= {r.ratio_to_reuse:.3g} ({r.ratio_to_reuse_ci95_low:.3g}–{r.ratio_to_reuse_ci95_high:.3g}), n = {r.n}")
+    print(f"{args.dest}: {', '.join(OUTPUTS)}")
 
 
 def cmd_ui(args: argparse.Namespace) -> None:
@@ -277,6 +304,38 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-mlflow", action="store_true", help="do not mirror the call to MLflow")
     p.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
     p.set_defaults(func=cmd_design)
+
+    p = sub.add_parser(
+        "frontier-plan", help="write one config per fold of the frontier study and print the commands that run them",
+        description="Folds of the frontier (issue 21): leave-one-α-out (--loo: each α in turn is the test α, the other\n"
+                    "library α train) and sparse grids (--sparse k: k training α, tested at the library α nearest\n"
+                    "each mid-gap).  Each fold is the base config with its own α, written to <runs-dir>/<fold>/config.yaml\n"
+                    "and run by the printed Snakemake command in that directory.")
+    p.add_argument("--config", default="config/frontier.yaml", help="the base config of every fold")
+    p.add_argument("--runs-dir", default="runs/frontier", help="one directory per fold is made here")
+    p.add_argument("--loo", type=float, nargs="+", default=[], metavar="ALPHA",
+                   help="library α to leave out, one fold each (N)")
+    p.add_argument("--sparse", type=int, nargs="+", default=[], metavar="K", help="sparse grid sizes, one fold each")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key of the base config in every fold, e.g. --set ablation.n_starts=10 (repeatable)")
+    p.add_argument("--snakemake", default="snakemake", help="the snakemake executable in the printed commands")
+    p.set_defaults(func=cmd_frontier_plan)
+
+    p = sub.add_parser("frontier", help="aggregate finished frontier folds: aRT(learned) ÷ aRT(reuse) against the gap",
+                       description="Per (design, test α, arm): starts pooled over the model seeds, aRT in IPOPT\n"
+                                   "iterations and CPU s with bootstrap intervals, and aRT(learned) ÷ aRT(reuse) with\n"
+                                   "its interval, against the gap to the nearest training α; the table, its Markdown\n"
+                                   "and the figure go to --dest and to MLflow.")
+    p.add_argument("runs", nargs="+", help="finished fold directories (each with config.yaml and results/)")
+    p.add_argument("--dest", default="results/frontier", help="where frontier.csv, frontier.md, fig_frontier.png go")
+    p.add_argument("--learned", nargs="+", default=None,
+                   help="arms compared with reuse (default: every arm of the folds but the reuse arm and uniform)")
+    p.add_argument("--reuse", default="nearest_alpha", help="the reuse arm")
+    p.add_argument("--n-boot", type=int, default=2000, help="bootstrap resamples")
+    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
+    p.add_argument("--mlflow-dir", default="results/mlflow", help="MLflow store of the aggregation's run")
+    p.add_argument("--no-mlflow", action="store_true", help="do not mirror the aggregation to MLflow")
+    p.set_defaults(func=cmd_frontier)
 
     p = sub.add_parser("ui", help="open the MLflow UI on results/mlflow")
     p.add_argument("--host", default="127.0.0.1", help="address the UI listens on")

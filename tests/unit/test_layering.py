@@ -44,15 +44,16 @@ LAYERS = (
     ("amorgs.config",),
     ("amorgs.tracking", "amorgs.lifeline", "amorgs.trajectory_export"),
     ("amorgs.figures",),
-    ("amorgs.steps", "amorgs.design", "amorgs.checks", "amorgs.reference"),
+    ("amorgs.steps", "amorgs.design", "amorgs.checks", "amorgs.reference", "amorgs.frontier"),
     ("amorgs.tools", "amorgs.library_grow", "amorgs.cli", "amorgs.__main__", "amorgs"),
 )
 
 #: Only the top layer may import the command line and the workflow steps: the command line itself, the steps,
 #: ``python -m amorgs``, ``amorgs check-outputs`` (:mod:`amorgs.checks`), which verifies what the steps declare,
-#: and ``amorgs reference-export`` (:mod:`amorgs.reference`), which copies what the steps made.
+#: ``amorgs reference-export`` (:mod:`amorgs.reference`), which copies what the steps made, and ``amorgs frontier``
+#: (:mod:`amorgs.frontier`), which reads the cells the steps of each fold declare.
 TOP = ("amorgs.cli", "amorgs.steps")
-TOP_IMPORTERS = ("amorgs.cli", "amorgs.steps", "amorgs.__main__", "amorgs.checks", "amorgs.reference")
+TOP_IMPORTERS = ("amorgs.cli", "amorgs.steps", "amorgs.__main__", "amorgs.checks", "amorgs.reference", "amorgs.frontier")
 
 
 def _within(name: str, prefix: str) -> bool:

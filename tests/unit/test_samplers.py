@@ -13,6 +13,7 @@ from amorgs.ablation.arms import ARMS, SAMPLER_NAMES, ArmInputs, build_sampler, 
 from amorgs.models import cvae
 from amorgs.models.samplers import (
     CHECKPOINTS,
+    ContinuationSampler,
     GMMLSTMSampler,
     NearestAlphaPerturbedSampler,
     NearestAlphaSampler,
@@ -177,6 +178,29 @@ def test_nearest_alpha_perturbed_noise_scale(problem, hq):
     assert np.std(z) == pytest.approx(0.02, rel=0.1)
     with pytest.raises(ValueError, match="scale"):
         NearestAlphaPerturbedSampler(problem, hq, TRAIN_ALPHAS, -1.0)
+
+
+def test_continuation_moves_the_reused_solutions_along_alpha(problem, hq):
+    """On the synthetic table (τ_s = 6 + 20 α, m_f = 415 + 20 α plus noise) the secant carries the nearest
+    training α's solutions to the trend at α: between two training α (interpolation) and beyond the range
+    (extrapolation); the queried α's own rows are never used."""
+    sampler = ContinuationSampler(problem, hq, TRAIN_ALPHAS)
+    upper = ContinuationSampler(problem, hq, (0.4, 0.7, 1.0))
+    assert (sampler.pool(0.5)[0], sampler.partner(0.5)) == (0.4, 0.7)  # across α: interpolation
+    assert (upper.pool(0.25)[0], upper.partner(0.25)) == (0.4, 0.7)  # below the training α: extrapolation
+    for s, alpha in ((sampler, 0.5), (upper, 0.25)):
+        x = s.sample(alpha, 200, np.random.default_rng(2))
+        assert x[:, 0].mean() == pytest.approx(6 + 20 * alpha, abs=0.3)
+        assert x[:, 3].mean() == pytest.approx(415 + 20 * alpha, abs=1.0)
+    reused = NearestAlphaSampler(problem, hq, TRAIN_ALPHAS).sample(0.5, 200, np.random.default_rng(2))
+    assert reused[:, 0].mean() == pytest.approx(6 + 20 * 0.4, abs=0.3)  # reuse stays at a₀ = 0.4
+    leak = hq[np.isclose(hq["alpha"], 0.7)].assign(alpha=0.5, m_f=999.0)
+    with_leak = ContinuationSampler(problem, pd.concat([hq, leak], ignore_index=True), (*TRAIN_ALPHAS, 0.5))
+    np.testing.assert_array_equal(with_leak.sample(0.5, 50, np.random.default_rng(3)),
+                                  sampler.sample(0.5, 50, np.random.default_rng(3)))
+    one = ContinuationSampler(problem, hq, (0.4,))  # one training α: plain reuse
+    np.testing.assert_array_equal(one.sample(0.5, 20, np.random.default_rng(1)),
+                                  NearestAlphaSampler(problem, hq, (0.4,)).sample(0.5, 20, np.random.default_rng(1)))
 
 
 def test_gmm_lstm_blends_the_bracketing_alphas(problem, hq, models):

@@ -91,6 +91,9 @@ ARMS: tuple[Arm, ...] = (
         high_quality=True, pooled=True),
     Arm("gmm_lstm", "GMM time & mass, LSTM control", f"{_SAMPLERS}:GMMLSTMSampler.build", models=("lstm",),
         high_quality=True),
+    # issue 21 §3: reuse moved along α by a secant between neighbouring training α (built to beat reuse)
+    Arm("continuation", "Nearest training α moved by a secant in α", f"{_SAMPLERS}:ContinuationSampler.build",
+        high_quality=True, pooled=True),
 )
 
 #: Name → arm.

@@ -21,6 +21,11 @@ and three non-neural (or half-neural) baselines that reuse known solutions (issu
     gmm_lstm                 τ, m_f ~ per-training-α Gaussian mixture, blended between the bracketing α;
                              controls = LSTM(τ, m_f, α)
 
+and one built to beat reuse (issue 21 §3)::
+
+    continuation             nearest_alpha's draw, each solution moved to α by a secant to its nearest
+                             match at a neighbouring training α
+
 The LSTM is deterministic given its conditioning; all randomness of a learned sampler comes from ``rng``:
 first one draw of the torch seed (when a CVAE is sampled), then the uniform parts in layout order.
 
@@ -42,7 +47,7 @@ import torch
 
 from amorgs.alphas import alpha_label, same_alpha
 from amorgs.models import cvae, lstm
-from amorgs.models.cr3bp_models import lstm_conditioning, stored_from_vanilla
+from amorgs.models.cr3bp_models import lstm_conditioning, stored_from_vanilla, vanilla_vectors
 from amorgs.models.names import CR3BP_MODELS
 from amorgs.problems import Problem
 from amorgs.problems.base import check_alpha
@@ -263,6 +268,40 @@ class NearestAlphaPerturbedSampler(NearestAlphaSampler):
         span = self.problem.upper - self.problem.lower
         z = (x - self.problem.lower) / span + rng.normal(0.0, self.scale, size=x.shape)
         return make_valid(self.problem.lower + z * span, self.problem)
+
+
+class ContinuationSampler(NearestAlphaSampler):
+    """Reuse moved along α by a secant.  Each start is a solution x₀ of the nearest training α a₀, drawn as
+    :class:`NearestAlphaSampler` draws; a *partner* training α a₁ is chosen (:meth:`partner`: the nearest on
+    the other side of α when there is one — interpolation —, else the next nearest — extrapolation); x₀ is
+    matched to its nearest high-quality solution x₁ at a₁ and moved to x = x₀ + (α − a₀)/(a₁ − a₀)·(x₁ − x₀).
+    Matching and the secant use the vanilla CVAE's layout (τ, m_f and the Cartesian throttle vectors u_k,
+    :func:`~amorgs.models.cr3bp_models.vanilla_vectors`: the azimuths of a coasting segment are arbitrary and
+    carry no distance) divided by the box widths (τ by 40/15/15 TU, m_f by m0, u by 2); x is mapped back
+    (:func:`~amorgs.models.cr3bp_models.stored_from_vanilla`) and made valid.  Uses no randomness beyond
+    the row draw; with a single training α it is :class:`NearestAlphaSampler`."""
+
+    name = "continuation"
+
+    def partner(self, alpha: float) -> float:
+        """The training α a₁ of the secant at ``alpha`` (a₀ itself when no other is usable)."""
+        a0 = self.pool(alpha)[0]
+        others = [a for a in _usable(self.by_alpha, alpha) if a != a0]
+        across = [a for a in others if (a - alpha) * (a0 - alpha) < 0]
+        return min(across or others, key=lambda a: (abs(a - alpha), a)) if others else a0
+
+    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        from scipy.spatial import cKDTree
+
+        a0, a1 = self.pool(alpha)[0], self.partner(alpha)
+        x0 = self._draw(alpha, n, rng)
+        if a1 == a0:
+            return make_valid(x0, self.problem)
+        scale = np.concatenate([(self.problem.upper - self.problem.lower)[:4], np.full(x0.shape[1] - 4, 2.0)])
+        v0, v1 = vanilla_vectors(x0) / scale, vanilla_vectors(self.by_alpha[a1]) / scale
+        match = cKDTree(v1).query(v0)[1]
+        v = v0 + (alpha - a0) / (a1 - a0) * (v1[match] - v0)
+        return make_valid(stored_from_vanilla(v * scale), self.problem)
 
 
 class GMMLSTMSampler:

@@ -1,0 +1,75 @@
+"""The frontier figure (issue 21 §1): does a learned sampler overtake reuse as the gap to the known α grows?
+Data in (the table of :func:`amorgs.ablation.frontier.frontier_table`), matplotlib Figure out; no statistics.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
+
+from amorgs.ablation.arms import arm_label
+
+_MARKERS = "osD^vP*X"
+#: x axes of the two panels: (column, label).
+_GAPS = (("gap", "gap |Δα| to the nearest training α (N)"), ("gap_relative", "relative gap |Δα| / α"))
+
+
+def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "high_quality") -> Figure:
+    """aRT(learned) ÷ aRT(reuse) with its bootstrap 95 % interval (log y; below the line at 1 learning wins)
+    against the absolute gap (left, N) and the relative gap (right), one point per (run, test α, learned arm):
+    colour = design, marker = learned arm (the arms at one gap side by side), ∞ drawn at the top edge as an
+    open marker, the test α written once beside its points.  ``unit``: cost in
+    ``iterations`` (IPOPT) or ``cpu_s``; ``target``: per ``high_quality`` solution or per new ``distinct``
+    optimum."""
+    t = table[(table["unit"] == unit) & (table["target"] == target) & table["ratio_to_reuse"].notna()]
+    designs = sorted(t["design"].unique())
+    arms = sorted(t["sampler"].unique())
+    values = t[["ratio_to_reuse", "ratio_to_reuse_ci95_low", "ratio_to_reuse_ci95_high"]].to_numpy(dtype=float)
+    shown = values[np.isfinite(values) & (values > 0)]
+    lo, hi = (shown.min() / 2, shown.max() * 2) if shown.size else (0.1, 10.0)
+    lo, hi = min(lo, 0.5), max(hi, 2.0)
+    fig = Figure(figsize=(11, 4.2), layout="tight")
+    axes = fig.subplots(1, 2, sharey=True)
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    for ax, (column, xlabel) in zip(axes, _GAPS):
+        dodge = 0.012 * float(t[column].max()) if len(t) else 0.0  # arms side by side at one gap
+        labelled = set()
+        for i, design in enumerate(designs):
+            for j, arm in enumerate(arms):
+                g = t[(t["design"] == design) & (t["sampler"] == arm)]
+                for r in g.itertuples(index=False):
+                    y = hi if np.isinf(r.ratio_to_reuse) else r.ratio_to_reuse
+                    if not (np.isfinite(y) and y > 0):
+                        continue
+                    y_lo = r.ratio_to_reuse_ci95_low if r.ratio_to_reuse_ci95_low > 0 else lo
+                    y_hi = hi if np.isinf(r.ratio_to_reuse_ci95_high) else r.ratio_to_reuse_ci95_high
+                    x = getattr(r, column) + (j - (len(arms) - 1) / 2) * dodge
+                    if np.isfinite(y_lo) and np.isfinite(y_hi):
+                        ax.plot([x, x], [y_lo, y_hi], color=f"C{i}", lw=1.2, alpha=0.8)
+                    ax.plot([x], [y], marker=_MARKERS[j % len(_MARKERS)], color=f"C{i}", ls="none",
+                            mfc="none" if np.isinf(r.ratio_to_reuse) else f"C{i}")
+                    if (r.run, r.alpha) not in labelled:
+                        labelled.add((r.run, r.alpha))
+                        ax.annotate(f"{r.alpha:g}", (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
+        ax.axhline(1.0, color="grey", ls="--", lw=0.8)
+        ax.set_yscale("log")
+        ax.set_ylim(lo, hi)
+        ax.yaxis.set_major_formatter(plain)
+        ax.yaxis.set_minor_formatter(plain)
+        ax.tick_params(axis="y", which="minor", labelsize=7)
+        ax.set_xlim(0, 1.15 * float(t[column].max()) + dodge if len(t) else 1.0)
+        ax.set_xlabel(xlabel)
+    per = "high-quality solution" if target == "high_quality" else "new η-distinct optimum"
+    cost = "IPOPT iterations" if unit == "iterations" else "CPU s"
+    axes[0].set_ylabel(f"aRT(learned) ÷ aRT(reuse)\n({cost} per {per})")
+    handles = [axes[0].plot([], [], color=f"C{i}", marker="o", ls="none", label=d)[0] for i, d in enumerate(designs)]
+    handles += [axes[0].plot([], [], color="k", marker=_MARKERS[j % len(_MARKERS)], ls="none",
+                             label=arm_label(a))[0] for j, a in enumerate(arms)]
+    if handles:
+        axes[1].legend(handles=handles, fontsize=7, loc="best")
+    n = int(t["n"].min()) if len(t) else 0
+    fig.suptitle(f"The frontier: below 1 the learned sampler beats reuse of the nearest α (bootstrap 95 %; "
+                 f"≥ {n} starts per arm; labels: test α)", fontsize=10)
+    return fig
