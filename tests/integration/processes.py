@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 
@@ -16,3 +17,14 @@ def session_pids(sid: int) -> list[int]:
         if int(fields[3]) == sid and fields[0] != "Z":
             pids.append(int(stat.parent.name))
     return pids
+
+
+def session_left_after(sid: int, grace_s: float = 10.0) -> list[int]:
+    """The live processes of session ``sid`` still there ``grace_s`` seconds from now (checked every 0.1 s; [] as
+    soon as none is left).  A process that a command killed on its way out may need a moment to die on a loaded
+    machine (``kill`` returns before the target has exited): outliving the command by that moment is not
+    outliving it."""
+    deadline = time.monotonic() + grace_s
+    while (left := session_pids(sid)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return left

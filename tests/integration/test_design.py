@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from processes import session_pids
+from processes import session_left_after, session_pids
 
 REPO = Path(__file__).resolve().parents[2]
 ALPHA = 0.42
@@ -210,12 +210,13 @@ def test_ctrl_c_ends_design_with_one_line_and_no_process_left(tmp_path):
         time.sleep(2)
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the foreground process group
         _, err = proc.communicate(timeout=60)
+        left = session_left_after(proc.pid)  # before the clean-up below, which would hide a survivor
     finally:
         for pid in session_pids(proc.pid):
             os.kill(pid, signal.SIGKILL)
     assert proc.returncode == 130
     assert [line for line in err.splitlines() if line.strip()] == ["amorgs design: interrupted"], err
-    assert session_pids(proc.pid) == []
+    assert left == [], f"processes of the interrupted design still alive 10 s after it ended: {left}"
 
 
 def test_an_unlisted_library_file_stops_design_naming_it(tmp_path):

@@ -20,7 +20,7 @@ import pytest
 import yaml
 
 from amorgs.data.tables import TIMING_COLUMNS
-from processes import session_pids
+from processes import session_left_after, session_pids
 
 ROOT = Path(__file__).resolve().parents[2]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
@@ -389,10 +389,7 @@ def test_kill_9_of_snakemake_leaves_no_job_or_solver_and_the_rerun_one_finished_
             time.sleep(0.5)
         os.kill(proc.pid, signal.SIGKILL)  # Snakemake alone: its jobs are re-parented, not signalled
         proc.wait()
-        deadline = time.monotonic() + 60
-        while session_pids(proc.pid) and time.monotonic() < deadline:
-            time.sleep(0.5)
-        assert session_pids(proc.pid) == [], "a job or solver process outlived the killed workflow"
+        assert session_left_after(proc.pid, 60) == [], "a job or solver process outlived the killed workflow"
     finally:
         for pid in session_pids(proc.pid):
             os.kill(pid, signal.SIGKILL)
