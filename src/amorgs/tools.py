@@ -32,9 +32,9 @@ EXAMPLES = {
     "                                                    # 3: complete but untracked in MLflow",
     "config-schema": "amorgs config-schema --write     # after changing src/amorgs/config.py",
     "config-show": "amorgs config-show config/smoke.yaml     # what the smoke run uses, every key",
-    "frontier-plan": "amorgs frontier-plan --config config/frontier.yaml --runs-dir runs/frontier --loo 0.1 0.5 1.0 "
+    "frontier-plan": "amorgs frontier-plan --config config/frontier.yaml --runs-dir results/frontier/runs --loo 0.1 0.5 1.0 "
     "--sparse 3 5",
-    "frontier": "amorgs frontier runs/frontier/* --dest results/frontier",
+    "frontier": "amorgs frontier results/frontier/runs/*/ --dest results/frontier",
     "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
     "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
 }
@@ -312,7 +312,7 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                     "each mid-gap).  Each fold is the base config with its own α, written to <runs-dir>/<fold>/config.yaml\n"
                     "and run by the printed Snakemake command in that directory.")
     p.add_argument("--config", default="config/frontier.yaml", help="the base config of every fold")
-    p.add_argument("--runs-dir", default="runs/frontier", help="one directory per fold is made here")
+    p.add_argument("--runs-dir", default="results/frontier/runs", help="one directory per fold is made here")
     p.add_argument("--loo", type=float, nargs="+", default=[], metavar="ALPHA",
                    help="library α to leave out, one fold each (N)")
     p.add_argument("--sparse", type=int, nargs="+", default=[], metavar="K", help="sparse grid sizes, one fold each")

@@ -64,7 +64,7 @@ def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "h
     per = "high-quality solution" if target == "high_quality" else "new η-distinct optimum"
     cost = "IPOPT iterations" if unit == "iterations" else "CPU s"
     axes[0].set_ylabel(f"aRT(learned) ÷ aRT(reuse)\n({cost} per {per})")
-    handles = [axes[0].plot([], [], color=f"C{i}", marker="o", ls="none", label=d)[0] for i, d in enumerate(designs)]
+    handles = [axes[0].plot([], [], color=f"C{i}", lw=2, label=d)[0] for i, d in enumerate(designs)]
     handles += [axes[0].plot([], [], color="k", marker=_MARKERS[j % len(_MARKERS)], ls="none",
                              label=arm_label(a))[0] for j, a in enumerate(arms)]
     if handles:
