@@ -23,6 +23,7 @@ import pandas as pd
 import yaml
 
 from amorgs import steps
+from amorgs.ablation.arms import REUSE_ARM
 from amorgs.ablation.frontier import Fold, FrontierRun, frontier_metrics, frontier_table, leave_one_out, sparse_grid
 from amorgs.config import effective_mapping, from_mapping, load_config, read_yaml
 from amorgs.errors import ConfigError, InputError
@@ -133,7 +134,7 @@ def read_run(run_dir: str | Path, design: str | None = None) -> FrontierRun:
                        cells=pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True))
 
 
-def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] | None = None, reuse: str = "nearest_alpha",
+def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] | None = None, reuse: str = REUSE_ARM,
               n_boot: int = 2000, seed: int = 0, track: bool = True, store_dir: str | Path = "results/mlflow"
               ) -> pd.DataFrame:
     """The frontier of the finished fold directories ``run_dirs``: table, Markdown and figure under ``dest``

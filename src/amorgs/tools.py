@@ -330,7 +330,7 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dest", default="results/frontier", help="where frontier.csv, frontier.md, fig_frontier.png go")
     p.add_argument("--learned", nargs="+", default=None,
                    help="arms compared with reuse (default: every arm of the folds but the reuse arm and uniform)")
-    p.add_argument("--reuse", default="nearest_alpha", help="the reuse arm")
+    p.add_argument("--reuse", default=REUSE_ARM, help=f"the reuse arm (default {REUSE_ARM})")
     p.add_argument("--n-boot", type=int, default=2000, help="bootstrap resamples")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
     p.add_argument("--mlflow-dir", default="results/mlflow", help="MLflow store of the aggregation's run")

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from amorgs.ablation.arms import BASELINE_ARM, REUSE_ARM
 from amorgs.ablation.statistics import ERT_TARGETS, art_interval, expected_running_time
 from amorgs.alphas import alpha_label, alpha_value, distinct_alphas, same_alpha
 
@@ -99,8 +100,8 @@ class FrontierRun:
 
 
 def frontier_table(
-    runs: list[FrontierRun], learned: tuple[str, ...] | None = None, reuse: str = "nearest_alpha",
-    baseline: str = "uniform", n_boot: int = 2000, seed: int = 0,
+    runs: list[FrontierRun], learned: tuple[str, ...] | None = None, reuse: str = REUSE_ARM,
+    baseline: str = BASELINE_ARM, n_boot: int = 2000, seed: int = 0,
 ) -> pd.DataFrame:
     """One row per (design, run, test α, arm, target, unit): the frontier's data.
 
