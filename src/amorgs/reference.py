@@ -8,6 +8,13 @@ Layout (paths keep their place under ``results/``)::
     reference/<name>/provenance.json, README.md (what the run was, how to regenerate and check it)
     reference/<name>/config.yaml (the config file the run read, verbatim: its SHA-256 is ``config_sha256``)
 
+``starts.parquet``: every start of every ablation cell of the run, compact (:func:`starts_table`: the key, arm and
+model seed, the 64 guess columns, and what the solve gave — status, verdict, iterations, m_f, objective,
+defects, CPU and wall seconds, solver-options hash; the solution's other 63 columns are dropped, a re-solve
+reproduces them).  :func:`certify_reference` re-solves a seeded sample of these starts with the solver options
+of the run's config and reports whether iterations and m_f match exactly: the reproducibility certificate
+(``amorgs reference-certify``).
+
 ``provenance.json``: every exported file (SHA-256, bytes); the config (file, SHA-256 of the file, the config
 hash MLflow records — a config file holds overrides of the typed defaults, so the test that the shipped config
 still describes the run compares the *effective* configs of the shipped file and of ``config.yaml``); the run's git commit and whether its tracked files were modified; package versions; the
@@ -26,6 +33,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from amorgs.config import load_config
@@ -44,12 +52,34 @@ CONFIG_COPY = "config.yaml"
 EXPORTED_OUTPUTS = {"ablation_report": ("summary", "tables", "figures"), "predict_cr3bp": ("metrics", "figures")}
 #: Rules that solve: their ``table`` output has one row per solve with its ``cpu_s``.
 SOLVE_RULES = ("generate", "ablation_cell", "ablation_cell_replicate", "ablation_cell_fraction")
+#: Rules whose tables are the ablation's starts (:data:`STARTS_FILE`).
+START_RULES = ("ablation_cell", "ablation_cell_replicate", "ablation_cell_fraction")
+#: The compact per-start table of a reference.
+STARTS_FILE = "starts.parquet"
+#: Its columns besides ``guess_*`` (those present in the cell tables, in this order), then ``cell``: the cell
+#: table's path under ``results/``.
+START_COLUMNS = ("problem", "sampler", "model_seed", "alpha", "seed", "start", "reuse_alpha", "reuse_pool_size",
+                 "status", "converged", "solver_success", "iterations", "m_f", "objective", "defect",
+                 "verify_defect", "cpu_s", "wall_s", "options_hash")
 #: Rules that train: their ``report`` output (``<model>.training.json``) holds ``train_cpu_s``.
 TRAIN_RULES = ("train_cr3bp", "train_cr3bp_replicate", "train_cr3bp_fraction")
 
 
 def _relative(path: str) -> str:
     return path.removeprefix("results/")
+
+
+def starts_table(cells: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """The compact per-start table of ablation cell tables (``{path under results/: table}``): the columns of
+    :data:`START_COLUMNS` each table has, its ``guess_*`` columns (the initial guesses, exact float64) and
+    ``cell``, the table's path; the cells in the order given, each in its row order."""
+    parts = []
+    for path, df in cells.items():
+        keep = [c for c in START_COLUMNS if c in df] + [c for c in df if c.startswith("guess_")]
+        parts.append(df[keep].assign(cell=path))
+    if not parts:
+        return pd.DataFrame(columns=[*START_COLUMNS, "cell"])
+    return pd.concat(parts, ignore_index=True)
 
 
 def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | Path = ".",
@@ -73,6 +103,12 @@ def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | P
                     shutil.copyfile(run / path, tmp)
                 files.append({"file": _relative(path), "rule": rule, "sha256": sha256_file(target),
                               "bytes": target.stat().st_size})
+    starts = starts_table({_relative(p): pd.read_parquet(run / p) for rule in START_RULES
+                           for p in outputs_of(rule, cfg, "table")})
+    with atomic_path(dst / STARTS_FILE) as tmp:
+        starts.to_parquet(tmp, index=False, compression="zstd")
+    files.append({"file": STARTS_FILE, "rule": "ablation_cell", "sha256": sha256_file(dst / STARTS_FILE),
+                  "bytes": (dst / STARTS_FILE).stat().st_size, "rows": len(starts)})
     with atomic_path(dst / CONFIG_COPY) as tmp:
         shutil.copyfile(run / config_file, tmp)
     listed = {f["file"] for f in files} | {MANIFEST, README, CONFIG_COPY}
@@ -147,6 +183,8 @@ def _readme(manifest: dict, dest: Path) -> str:
         f"- regenerate: `{manifest['command']}` on the same commit and library, then `amorgs reference-export "
         f"--config {manifest['config_file']} --dest {dest.as_posix()}`. Everything but CPU timings is "
         "deterministic (IPOPT iterations, rates, aRT in iterations).",
+        f"- every start: `{STARTS_FILE}` (guesses and outcomes); `amorgs reference-certify {dest.as_posix()}` "
+        "re-solves a seeded sample of them and reports whether iterations and m_f match exactly.",
         "",
         "Tables:",
         "",
@@ -176,3 +214,75 @@ def verify_reference(dest: str | Path) -> dict:
         raise InputError(f"{config}: {'differs from' if config.is_file() else 'missing, named in'} the "
                          f"config_sha256 of {manifest_path}")
     return manifest
+
+
+def compare_resolves(rows: pd.DataFrame, records, variable_names: tuple[str, ...]) -> pd.DataFrame:
+    """Each start of ``rows`` (a slice of :data:`STARTS_FILE`) beside its re-solve (``records``: solve records in
+    the same order, turned into table rows exactly as the ablation did, with ``variable_names``):
+    ``status``/``status_again``, ``iterations``/``iterations_again``, ``m_f``/``m_f_again`` (kg), and ``exact`` —
+    the same status, the same iteration count and a bit-identical m_f (both NaN counts as identical)."""
+    out = rows[["sampler", "alpha", "seed", "start", "status", "iterations", "m_f"]].reset_index(drop=True)
+    again = pd.DataFrame([r.to_row(variable_names) for r in records])
+    out["status_again"] = again["status"].to_numpy()
+    out["iterations_again"] = again["iterations"].astype(int).to_numpy()
+    out["m_f_again"] = again["m_f"].astype(float).to_numpy()
+    m_f, m_f_again = out["m_f"].to_numpy(float), out["m_f_again"].to_numpy(float)
+    same_m_f = (m_f == m_f_again) | (np.isnan(m_f) & np.isnan(m_f_again))
+    out["exact"] = (out["status"] == out["status_again"]).to_numpy() & (
+        out["iterations"] == out["iterations_again"]).to_numpy() & same_m_f
+    return out
+
+
+def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers: int = 1) -> dict:
+    """The reproducibility certificate of the committed reference ``dest``: its files are checked against the
+    manifest (:func:`verify_reference`), then ``sample`` of its starts (:data:`STARTS_FILE`), drawn without
+    replacement with ``numpy.random.default_rng(seed)``, are re-solved from their stored guesses with the
+    solver options of the run's config (``config.yaml``; their hash must equal the starts' ``options_hash``)
+    and compared (:func:`compare_resolves`).  Returns ``{"reference", "sample", "seed", "n", "exact",
+    "matched", "max_abs_dm_f_kg", "options_hash", "packages", "rows": [...]}``; ``exact`` is true when every
+    re-solve matched.  ``InputError`` names the file when the reference has no starts or other options."""
+    from amorgs.problems import get_problem
+    from amorgs.solvers.multistart import options_digest, solve_guesses
+
+    dst = Path(dest)
+    manifest = verify_reference(dst)
+    path = dst / STARTS_FILE
+    if not path.is_file():
+        raise InputError(f"{path}: this reference has no per-start table (exported before they were kept); "
+                         "re-export it from its run to certify it")
+    starts = pd.read_parquet(path)
+    if sample < 1:
+        raise InputError(f"--sample {sample}: certify at least 1 start")
+    cfg = load_config(dst / CONFIG_COPY)
+    problem = get_problem("cr3bp")
+    options = cfg.problems.cr3bp.solver
+    digest = options_digest("cr3bp", options)
+    held = sorted(set(starts["options_hash"].dropna()))
+    if held != [digest]:
+        raise InputError(f"{path}: solved with solver options {', '.join(held)}; {dst / CONFIG_COPY} gives "
+                         f"{digest} with today's code — the solver's defaults changed since the run")
+    rng = np.random.default_rng(seed)
+    chosen = starts.iloc[np.sort(rng.choice(len(starts), size=min(sample, len(starts)), replace=False))]
+    guess_cols = [f"guess_{v}" for v in problem.variable_names]
+    compared = []
+    for alpha, rows in chosen.groupby("alpha", sort=True):
+        records, _ = solve_guesses(problem, float(alpha), rows[guess_cols].to_numpy(float), workers, options,
+                                   progress=False)
+        compared.append(compare_resolves(rows, records, problem.variable_names))
+    table = pd.concat(compared, ignore_index=True)
+    dm = (table["m_f"] - table["m_f_again"]).abs()
+    return {
+        "reference": str(dst),
+        "config_hash": manifest["config_hash"],
+        "git_commit_of_run": manifest["git_commit"],
+        "sample": int(len(table)),
+        "seed": int(seed),
+        "of_starts": int(len(starts)),
+        "matched": int(table["exact"].sum()),
+        "exact": bool(table["exact"].all()),
+        "max_abs_dm_f_kg": float(dm.max()) if dm.notna().any() else 0.0,
+        "options_hash": digest,
+        **git_state(Path.cwd()),
+        "packages": {k.removeprefix("version."): v for k, v in package_versions().items()},
+        "rows": json.loads(table.to_json(orient="records")),
+    }

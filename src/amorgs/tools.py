@@ -6,7 +6,8 @@
 (the MLflow UI on ``results/mlflow``), ``frontier-plan`` and ``frontier`` (the frontier study's fold configs,
 and the aggregation of its finished folds), ``check-outputs`` (every output a config promises exists, is
 non-empty and is tracked), ``config-schema`` (the JSON Schema generated from the config model) and
-``reference-export`` (commit a finished run's tables and figures with provenance, or ``--check`` them).  Heavy
+``reference-export`` (commit a finished run's tables and figures with provenance, or ``--check`` them) and
+``reference-certify`` (re-solve a seeded sample of a reference's starts: the reproducibility certificate).  Heavy
 imports happen inside the command that needs them.
 """
 
@@ -37,6 +38,7 @@ EXAMPLES = {
     "frontier": "amorgs frontier results/frontier/runs/*/ --dest results/frontier",
     "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
     "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
+    "reference-certify": "amorgs reference-certify reference/frontier/sparse-3 --sample 20 --seed 0   # exit 1: a re-solve differs",
 }
 
 
@@ -180,6 +182,23 @@ def cmd_reference_export(args: argparse.Namespace) -> None:
     print(f"{args.dest}: {len(manifest['files'])} files from the run of {args.config} "
           f"({manifest['cpu_hours']['total']:.2f} CPU-hours, library of {manifest['library']['rows']} solves); "
           f"manifest {args.dest}/provenance.json")
+
+
+def cmd_reference_certify(args: argparse.Namespace) -> None:
+    from pathlib import Path
+
+    from amorgs.data.io import write_json
+    from amorgs.reference import certify_reference
+
+    cert = certify_reference(args.reference, args.sample, args.seed, args.workers)
+    output = Path(args.output or f"results/certificates/{Path(args.reference).name}-seed{args.seed}.json")
+    write_json(cert, output)
+    verdict = "reproduced exactly" if cert["exact"] else "NOT reproduced"
+    print(f"{args.reference}: {cert['matched']} of {cert['sample']} re-solved starts (seed {args.seed}, of "
+          f"{cert['of_starts']}) match iterations, status and m_f exactly — {verdict}; largest |Δm_f| "
+          f"{cert['max_abs_dm_f_kg']:.3g} kg; certificate {output}")
+    if not cert["exact"]:
+        raise SystemExit(1)
 
 
 def cmd_config_schema(args: argparse.Namespace) -> None:
@@ -364,3 +383,13 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--library-dir", default="data/library", help="the library the run read, relative to --run-dir")
     p.add_argument("--check", action="store_true", help="verify the files of --dest against its manifest instead")
     p.set_defaults(func=cmd_reference_export)
+
+    p = sub.add_parser("reference-certify",
+                       help="re-solve a seeded sample of a committed reference's starts: do iterations and m_f match exactly?")
+    p.add_argument("reference", help="the committed reference directory (with starts.parquet), e.g. reference/frontier/sparse-3")
+    p.add_argument("--sample", type=int, default=20, help="how many starts to re-solve (default 20)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sample (default 0)")
+    p.add_argument("--workers", type=int, default=1, help="solver processes (default 1)")
+    p.add_argument("--output", default=None,
+                   help="the certificate (JSON; default results/certificates/<reference>-seed<seed>.json)")
+    p.set_defaults(func=cmd_reference_certify)

@@ -266,6 +266,15 @@ def _check_reference_export(wd: Path, ref: Path, cfg) -> None:
     assert sum(t["rows"] for t in cells) == cfg.ablation.n_starts * len(cfg.ablation.samplers) * 2
     assert manifest["config_hash"] == cfg.hash and manifest["library"]["rows"] > 0
     assert "torch" in manifest["packages"]
+    starts = pd.read_parquet(ref / "starts.parquet")  # every ablation start, compact: guesses and outcomes
+    assert len(starts) == sum(t["rows"] for t in manifest["solve_tables"] if t["file"].startswith("cr3bp/ablation/"))
+    assert len([c for c in starts if c.startswith("guess_")]) == 64 and "theta_01" not in starts
+    cert_file = ref.parent / "certificate.json"
+    out = subprocess.run([sys.executable, "-m", "amorgs", "reference-certify", str(ref), "--sample", "2",
+                          "--seed", "3", "--output", str(cert_file)], capture_output=True, text=True, env=ENV)
+    assert out.returncode == 0 and "2 of 2 re-solved starts" in out.stdout, out.stdout + out.stderr
+    cert = json.loads(cert_file.read_text())
+    assert cert["exact"] and cert["max_abs_dm_f_kg"] == 0.0 and len(cert["rows"]) == 2
 
     out = subprocess.run([sys.executable, "-m", "amorgs", "reference-export", "--dest", str(ref), "--check"],
                          capture_output=True, text=True, env=ENV)

@@ -246,3 +246,31 @@ def test_the_frontier_figure(runs):
     assert sorted(float(p.get_xdata()[0]) for p in points) == pytest.approx(sorted(learned["gap"]))
     assert left.get_xlim()[0] == 0
     assert {t.get_text() for t in left.texts} == {"0.5", "0.3"}
+
+
+def _frontier(points):
+    """A frontier table of (run, test α, relative gap, arm, ratio, upper end of its interval)."""
+    return pd.DataFrame([{"design": run.split("-")[0], "run": run, "alpha": a, "gap_relative": g, "sampler": arm,
+                          "target": "high_quality", "unit": "iterations", "ratio_to_reuse": r,
+                          "ratio_to_reuse_ci95_low": r / 2, "ratio_to_reuse_ci95_high": hi}
+                         for run, a, g, arm, r, hi in points])
+
+
+def test_the_designer_follows_the_frontier():
+    from amorgs.ablation.frontier import choose_sampler
+
+    train = [0.1, 0.3, 0.5]
+    table = _frontier([("sparse-3", 0.3, 0.67, "amorgs", 0.5, 0.9), ("sparse-3", 0.3, 0.67, "continuation", 0.7, 1.3),
+                       ("sparse-5", 0.4, 0.25, "amorgs", 1.5, 3.0), ("sparse-5", 0.6, 0.17, "amorgs", 0.8, 0.95),
+                       ("sparse-8", 0.9, 0.06, "amorgs", 2.0, 4.0)])
+    far = choose_sampler(table, 0.2, train)  # gap 0.1 / 0.2 = 50 %: nearest measured 67 %, where AmorGS won
+    assert far.sampler == "amorgs" and far.gap_relative == pytest.approx(0.5) and "0.300 in sparse-3" in far.reason
+    mid = choose_sampler(table, 0.39, train)  # 2.6 %: nearest measured 6 % → reuse lost nothing there
+    assert mid.sampler == "nearest_alpha" and "No learned arm beat reuse" in mid.reason
+    pooled = choose_sampler(table, 0.58, train)  # 13.8 %: only 17 % (AmorGS won) lies within 1.25× of the nearest
+    assert pooled.sampler == "amorgs" and len(pooled.evidence) == 1
+    both = choose_sampler(table, 0.62, train)  # 19.4 %: 17 % and 25 % within the pooling factor: not every point won
+    assert both.sampler == "nearest_alpha" and len(both.evidence) == 2
+    assert choose_sampler(table, 0.3, train).sampler == "nearest_alpha"  # a known α: its own solutions
+    assert choose_sampler(table, 0.2, train, available=("continuation",)).sampler == "nearest_alpha"
+    assert "no frontier measurement" in choose_sampler(table.iloc[:0], 0.2, train).reason

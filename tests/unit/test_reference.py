@@ -61,3 +61,34 @@ def test_a_reference_config_copy_that_differs_is_named(tmp_path):
     (ref / "config.yaml").unlink()
     with pytest.raises(InputError, match=r"config\.yaml: missing"):
         verify_reference(ref)
+
+
+def test_certificate_compares_iterations_status_and_m_f_exactly():
+    import numpy as np
+    import pandas as pd
+
+    from amorgs.reference import compare_resolves
+    from amorgs.solvers.record import SolveRecord
+
+    names = ("tau_s", "tau_i", "tau_f", "m_f")
+    rows = pd.DataFrame({"sampler": ["uniform"] * 4, "alpha": [0.5] * 4, "seed": [1] * 4, "start": range(4),
+                         "status": ["Solve_Succeeded"] * 3 + ["timeout"], "iterations": [40, 41, 42, 0],
+                         "m_f": [420.0, 421.0, 422.0, np.nan]})
+
+    def record(status, iterations, m_f):
+        return SolveRecord(status=status, converged=True, solver_success=True, x=np.array([1.0, 2.0, 3.0, m_f]),
+                           iterations=iterations)
+
+    again = [record("Solve_Succeeded", 40, 420.0), record("Solve_Succeeded", 43, 421.0),
+             record("Solve_Succeeded", 42, np.nextafter(422.0, 500.0)), record("timeout", 0, np.nan)]
+    table = compare_resolves(rows, again, names)
+    assert table["exact"].tolist() == [True, False, False, True]  # one more iteration; m_f one ulp off
+    assert table["iterations_again"].tolist() == [40, 43, 42, 0]
+
+
+def test_a_reference_without_starts_cannot_be_certified_and_says_so():
+    from amorgs.errors import InputError
+    from amorgs.reference import certify_reference
+
+    with pytest.raises(InputError, match=r"reference/study/starts\.parquet: this reference has no per-start table"):
+        certify_reference(ROOT / "reference" / "study", sample=1)

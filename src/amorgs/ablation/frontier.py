@@ -177,3 +177,71 @@ def frontier_metrics(table: pd.DataFrame) -> dict[str, float]:
             if math.isfinite(v):
                 out[f"frontier_ratio{suffix}/{r.run}/alpha_{alpha_label(r.alpha)}/{r.sampler}/{what}"] = float(v)
     return out
+
+
+#: Measured test points whose relative gap lies within this factor of the nearest one are pooled by
+#: :func:`choose_sampler` (near-equal gaps are one measurement, not a choice between noisy neighbours).
+POOL_FACTOR = 1.25
+
+
+@dataclass(frozen=True)
+class SamplerChoice:
+    """What :func:`choose_sampler` picked: the ``sampler``, a one-paragraph ``reason`` a designer can read, the
+    requested α's ``nearest_train_alpha`` (N), ``gap`` (N) and ``gap_relative``, and the frontier rows it
+    rests on (``evidence``: design, run, α, gap_relative, sampler, ratio_to_reuse and its interval)."""
+
+    sampler: str
+    reason: str
+    nearest_train_alpha: float
+    gap: float
+    gap_relative: float
+    evidence: tuple[dict, ...] = ()
+
+
+def choose_sampler(frontier: pd.DataFrame, alpha: float, train_alphas, available: tuple[str, ...] | None = None,
+                   reuse: str = REUSE_ARM, unit: str = "iterations", target: str = "high_quality") -> SamplerChoice:
+    """The sampler the measured frontier recommends at ``alpha`` given the α whose solutions are known
+    (``train_alphas``, N): reuse (``reuse``) unless a learned arm measured *significantly* better than reuse
+    at the relative gap nearest this one.
+
+    The rule: with the relative gap g = |α − nearest known α| / α, take the frontier's rows (``unit``,
+    ``target``, arms with a ratio to reuse, restricted to ``available`` when given) at the measured relative
+    gap nearest g on a log scale, pooling every measured point within a factor :data:`POOL_FACTOR` of it. An
+    arm wins when the upper end of its 95 % interval of aRT(arm) ÷ aRT(reuse) is below 1 at every pooled
+    point; among winners the one with the lowest geometric-mean ratio is chosen. At g = 0 (α is known) or
+    without measurements it is reuse.
+    """
+    known = distinct_alphas(train_alphas)
+    target_alpha = alpha_value(alpha)
+    if any(same_alpha(a, target_alpha) for a in known):
+        return SamplerChoice(reuse, f"α = {target_alpha:g} N is a library α: its own high-quality solutions are "
+                             f"reused ({reuse}).", target_alpha, 0.0, 0.0)
+    nearest, delta, rel = gap(target_alpha, known)
+    rows = frontier[(frontier["unit"] == unit) & (frontier["target"] == target)
+                    & frontier["ratio_to_reuse"].notna() & (frontier["gap_relative"] > 0)]
+    if available is not None:
+        rows = rows[rows["sampler"].isin(available)]
+    where = f"α = {target_alpha:g} N is {delta:.3g} N ({rel:.1%}) from the nearest library α {nearest:g}"
+    if rows.empty:
+        return SamplerChoice(reuse, f"{where}; no frontier measurement of a learned arm: reuse ({reuse}).",
+                             nearest, delta, rel)
+    distance = np.abs(np.log(rows["gap_relative"].to_numpy(float) / rel))
+    pooled = rows[distance <= distance.min() + math.log(POOL_FACTOR)]
+    points = sorted({(r.run, alpha_label(r.alpha), r.gap_relative) for r in pooled.itertuples()}, key=lambda p: p[2])
+    at = ", ".join(f"{label} in {run} ({g:.1%})" for run, label, g in points)
+    evidence = tuple(pooled[["design", "run", "alpha", "gap_relative", "sampler", "ratio_to_reuse",
+                             "ratio_to_reuse_ci95_low", "ratio_to_reuse_ci95_high"]].to_dict("records"))
+    summary = []
+    winners = {}
+    for arm, g in pooled.groupby("sampler", sort=True):
+        ratio = float(np.exp(np.log(g["ratio_to_reuse"].clip(lower=1e-12)).mean()))
+        summary.append(f"{arm} ÷ reuse {ratio:.2g} (95 % upper ends {', '.join(f'{v:.2g}' for v in g['ratio_to_reuse_ci95_high'])})")
+        if (g["ratio_to_reuse_ci95_high"] < 1).all():
+            winners[arm] = ratio
+    measured = f"{where}; nearest measured relative gap: test α {at}: " + "; ".join(summary)
+    if not winners:
+        return SamplerChoice(reuse, f"{measured}. No learned arm beat reuse significantly there: reuse ({reuse}).",
+                             nearest, delta, rel, evidence)
+    best = min(winners, key=winners.get)
+    return SamplerChoice(best, f"{measured}. {best} beat reuse significantly there: {best}.", nearest, delta, rel,
+                         evidence)
