@@ -13,3 +13,13 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(before)
+
+
+#: Run first (pytest-xdist hands tests out in collection order): the smoke workflow (≈ 5 min on 2 cores) then the
+#: other slow tests, so that the longest run beside everything else instead of last.
+FIRST = "tests/integration/test_workflow.py::test_smoke_workflow_tracks_every_job"
+
+
+def pytest_collection_modifyitems(config, items):
+    """Longest first: the smoke workflow, then every ``slow`` test, then the rest, each in collection order."""
+    items.sort(key=lambda item: (item.nodeid != FIRST, item.get_closest_marker("slow") is None))
