@@ -1,7 +1,8 @@
 """The workflow configuration: one typed model (pydantic) that is the schema and holds every default.
 
-The defaults of :class:`Config` are the main job (a plain ``snakemake``; the solver sections take theirs from
-:mod:`amorgs.solvers.options`, ``cr3bp_analysis.params`` from
+The defaults of :class:`Config` are the main job (a plain ``snakemake``; each problem's ``solver`` and
+``filter`` sections are its family's types, with the family's defaults — :mod:`amorgs.problems`: the options of
+:mod:`amorgs.solvers.options`, the quality filters of the families —, ``cr3bp_analysis.params`` from
 :class:`amorgs.analysis.structure_params.StructureParams`).  A config file holds only what its experiment
 changes: it is merged over the defaults (:func:`effective_mapping`) — nested mappings key by key, anything
 else (a list, a number, a string, null) replaces the default — and the merged mapping is validated.  No other
@@ -9,8 +10,8 @@ key is allowed.  What runs, is hashed (:attr:`Config.hash`) and is recorded (MLf
 models' manifests) is always that merged, *effective* config.  The JSON Schema
 ``workflow/schemas/config.schema.json`` is *generated* from these models (``amorgs config-schema --write``; a
 test keeps it current), so types, ranges, enums, defaults and descriptions are written once, here.  Enums come
-from the registries: samplers from :mod:`amorgs.ablation.arms`, problems from :mod:`amorgs.problems`, presets
-from :mod:`amorgs.models.names`.
+from the registries: samplers from :mod:`amorgs.ablation.arms`, problems (and each one's α range) from
+:data:`amorgs.problems.FAMILIES`, presets from :mod:`amorgs.models.names`.
 
 Checking happens at load, before any job: the model (types, ranges, enums, unknown keys), then the
 cross-field rules (:meth:`Config._cross_field_rules`: α inside each problem's range and distinct at three
@@ -38,7 +39,9 @@ from amorgs.alphas import alpha_label
 from amorgs.analysis.structure_params import StructureParams
 from amorgs.errors import ConfigError
 from amorgs.models.names import CR3BP_PRESETS, DEJONG_PRESETS
-from amorgs.problems import ALPHA_RANGES
+from amorgs.problems import FAMILIES
+from amorgs.problems.cr3bp import Cr3bpFilter
+from amorgs.problems.dejong import DejongFilter
 from amorgs.solvers.options import BfgsOptions, IpoptOptions
 
 #: The generated JSON Schema, relative to the repository root (the working directory of workflow and CLI).
@@ -125,20 +128,9 @@ class Library(Section):
         description="null: every library row of each α; a number: only the first rows (a fixed slice)")
 
 
-class DejongFilter(Section):
-    """Keep converged solves with J ≤ ``max_objective`` (``null``: every converged solve)."""
-
-    max_objective: float | None
-
-
-class Cr3bpFilter(Section):
-    """β: keep converged solves with final mass m_f ≥ ``min_final_mass_kg`` (kg)."""
-
-    min_final_mass_kg: float
-
-
 class ProblemConfig(Section):
-    """What the generate → merge → filter stages do for one problem."""
+    """What the generate → merge → filter stages do for one problem; a subclass per family adds its ``solver``
+    (the family's ``options_type``) and its ``filter`` (the family's ``quality_type``)."""
 
     enabled: Flag
     alphas: Alphas
@@ -149,19 +141,15 @@ class ProblemConfig(Section):
         """Label → α for every generated α (train, then test), in config order."""
         return {alpha_label(a): a for a in (*self.alphas.train_values(), *self.alphas.test)}
 
-    def filter_thresholds(self) -> dict:
-        """The filter section as keyword arguments of :func:`amorgs.data.filter.high_quality`."""
-        return self.filter.model_dump()  # type: ignore[attr-defined]
-
 
 class DejongConfig(ProblemConfig):
     solver: BfgsOptions = Field(description="scipy BFGS options (amorgs.solvers.options.BfgsOptions)")
-    filter: DejongFilter
+    filter: DejongFilter = Field(description="what high quality means (amorgs.problems.dejong.DejongFilter)")
 
 
 class Cr3bpConfig(ProblemConfig):
     solver: IpoptOptions = Field(description="IPOPT options (amorgs.solvers.options.IpoptOptions)")
-    filter: Cr3bpFilter
+    filter: Cr3bpFilter = Field(description="β: what high quality means (amorgs.problems.cr3bp.Cr3bpFilter)")
 
 
 #: Where the committed solution library lives (``problems.<name>.library.path``).
@@ -169,7 +157,8 @@ LIBRARY_PATH = "data/library"
 
 
 class Problems(Section):
-    """The problem families, each with the defaults of the main job."""
+    """The problem families (one field per family of :data:`amorgs.problems.FAMILIES`, of its name), each with
+    the defaults of the main job: its solver options and quality filter at the family's defaults."""
 
     #: De Jong's 5th function rotated by α (spec §7, paper Sec. V.A): the grid iπ/100, i = 0 … 50, tested at
     #: π/9, 2π/9, π/3, 4π/9; minima of the holes have J ≈ 1, stationary points on the plateau J ≈ 500.
@@ -180,7 +169,7 @@ class Problems(Section):
         generate=Generate(shards=1, starts_per_shard=200, workers=1, mem_mb=2000, runtime_min=30),
         library=Library(enabled=False, path=LIBRARY_PATH, max_rows_per_alpha=None),
         solver=BfgsOptions(),
-        filter=DejongFilter(max_objective=10.0),
+        filter=DejongFilter(),
     )
     #: Low-thrust GTO → L1-halo transfer (spec §1–6, paper Sec. V.B): the paper's 12 training and 2 test α;
     #: the whole library merged with a fresh slice of 8 starts per α (column ``source``); β of the paper.
@@ -190,7 +179,7 @@ class Problems(Section):
         generate=Generate(shards=1, starts_per_shard=8, workers=2, mem_mb=4000, runtime_min=120),
         library=Library(enabled=True, path=LIBRARY_PATH, max_rows_per_alpha=None),
         solver=IpoptOptions(),
-        filter=Cr3bpFilter(min_final_mass_kg=415.0),
+        filter=Cr3bpFilter(),
     )
 
     def enabled(self) -> dict[str, ProblemConfig]:
@@ -329,12 +318,13 @@ class Config(Section):
     def _cross_field_rules(self) -> Config:
         """The rules a field alone cannot state (each error names its dotted key)."""
         for name in type(self.problems).model_fields:
-            problem = getattr(self.problems, name)
-            lo, hi = ALPHA_RANGES[name]
+            problem, family = getattr(self.problems, name), FAMILIES[name]
+            lo, hi = family.alpha_range
             seen: dict[str, float] = {}
             for a in (*problem.alphas.train_values(), *problem.alphas.test):
                 if not lo - 1e-12 <= a <= hi + 1e-12:
-                    raise ValueError(f"problems.{name}.alphas: α = {a!r} lies outside the problem's range [{lo:g}, {hi:g}]")
+                    raise ValueError(f"problems.{name}.alphas: α = {a!r} lies outside the problem's range "
+                                     f"[{lo:g}, {hi:g}] {family.alpha_unit}")
                 label = alpha_label(a)
                 if label in seen:
                     raise ValueError(f"problems.{name}.alphas: α values {seen[label]!r} and {a!r} share the label "

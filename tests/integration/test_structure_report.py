@@ -15,9 +15,9 @@ from matplotlib.figure import Figure
 
 from amorgs.alphas import alpha_label, distinct_alphas, metric_key, rows_at
 from amorgs.analysis.structure_report import StructureParams, StructureResult, analyze
-from amorgs.data.filter import high_quality
 from amorgs.figures.structure import structure_figures
 from amorgs.layout import ANALYSIS_FIGURES, ANALYSIS_TABLES
+from amorgs.problems.cr3bp import Cr3bpFilter
 
 FIXTURE = Path(__file__).resolve().parents[1] / "data" / "cr3bp_solutions_small.parquet"
 BETA_KG = 415.0
@@ -45,7 +45,7 @@ def _check(result: StructureResult, df: pd.DataFrame) -> None:
 @pytest.mark.skipif(not FIXTURE.is_file(), reason="fixture of real solves not present")
 def test_analyze_on_committed_real_solutions():
     df = pd.read_parquet(FIXTURE)
-    hq = high_quality(df, min_final_mass_kg=BETA_KG)
+    hq = Cr3bpFilter(min_final_mass_kg=BETA_KG).select(df)
     result = analyze(df, hq, BETA_KG, StructureParams(n_trajectories=2))
     _check(result, df)
     metrics, tables = result.metrics, result.tables
@@ -76,7 +76,7 @@ def test_analyze_on_fresh_multistart():
     from amorgs.solvers.multistart import run_multistart
 
     df = run_multistart(get_problem("cr3bp"), 1.0, 7, 6, workers=1, progress=False)
-    hq = high_quality(df, min_final_mass_kg=BETA_KG)
+    hq = Cr3bpFilter(min_final_mass_kg=BETA_KG).select(df)
     result = analyze(df, hq, BETA_KG, StructureParams(n_trajectories=1))
     _check(result, df)
     if df["converged"].any():

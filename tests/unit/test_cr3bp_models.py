@@ -10,7 +10,6 @@ import pytest
 import torch
 from cr3bp_synthetic import synthetic_hq
 
-from amorgs.data.filter import high_quality
 from amorgs.models.cr3bp_models import (
     PRESETS,
     TRAINERS,
@@ -23,6 +22,7 @@ from amorgs.models.cr3bp_models import (
     vanilla_cvae_config,
     vanilla_vectors,
 )
+from amorgs.problems.cr3bp import Cr3bpFilter
 from amorgs.models.cvae import GMMPriorCVAE, VanillaCVAE
 from amorgs.models.lstm import ControlLSTM, LSTMConfig
 from amorgs.models.training import TrainConfig
@@ -85,7 +85,7 @@ def test_training_decreases_the_loss(name):
 @pytest.mark.skipif(not FIXTURE.is_file(), reason="fixture of real solves not present")
 @pytest.mark.parametrize("name", sorted(TRAINERS))
 def test_training_on_real_solutions(name):
-    hq = high_quality(pd.read_parquet(FIXTURE), min_final_mass_kg=415.0)
+    hq = Cr3bpFilter(min_final_mass_kg=415.0).select(pd.read_parquet(FIXTURE))
     losses: list[float] = []
     TRAINERS[name](hq, "small", cfg(30), lambda epoch, m: losses.append(m["loss"]))
     assert np.all(np.isfinite(losses)) and losses[-1] < 0.5 * losses[0]

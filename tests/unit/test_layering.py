@@ -143,8 +143,19 @@ def test_every_module_imports_only_its_own_layer_and_those_below():
     assert sorted(found) == [], "upward imports (importer, imported)"
 
 
+def test_the_solvers_import_nothing_of_the_problems():
+    """The problems build on the solvers' interfaces (options, record, IPOPT on a transcription), never the reverse."""
+    modules = package_imports()
+    assert "amorgs.solvers.multistart" in modules and "amorgs.problems.cr3bp" in modules
+    found = sorted((m, n) for m, names in modules.items() if _within(m, "amorgs.solvers")
+                   for n in names if _within(n, "amorgs.problems"))
+    assert found == []
+
+
 @pytest.mark.parametrize("module, source, imported", [
     ("amorgs.solvers.ipopt", "from amorgs.problems.base import SolveRecord\n", "amorgs.problems"),
+    ("amorgs.solvers.multistart", "def f():\n    from amorgs.problems import get_problem\n", "amorgs.problems"),
+    ("amorgs.problems.cr3bp", "from amorgs.data.filter import high_quality\n", "amorgs.data"),
     ("amorgs.data.io", "def f():\n    from amorgs.models.shipped import verify_models\n", "amorgs.models"),
     ("amorgs.alphas", "from .config import load_config\n", "amorgs.config"),
     ("amorgs.figures.dejong", "import amorgs.steps.dejong\n", "amorgs.steps"),

@@ -9,6 +9,7 @@ import pickle
 import numpy as np
 import pydantic
 import pytest
+import scipy.optimize
 
 import amorgs.problems.dejong as dj
 from amorgs.problems import get_problem
@@ -101,7 +102,7 @@ def test_one_default_is_what_the_solve_uses_when_the_caller_gives_nothing(monkey
         seen.update(options)
         raise FloatingPointError("stop here")
 
-    monkeypatch.setattr(dj, "minimize", spy)
+    monkeypatch.setattr(scipy.optimize, "minimize", spy)  # the solver imports it when it solves
     dj.DeJong5().make_local_solver(None).solve(np.array([1.0, 2.0]), 0.5)
     assert seen == {"gtol": BfgsOptions().gtol, "maxiter": BfgsOptions().maxiter}
     assert worker_timeout_s(BfgsOptions()) == worker_timeout_s(None) == UNCAPPED_TIMEOUT_S

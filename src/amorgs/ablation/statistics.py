@@ -10,7 +10,8 @@ their pool (:func:`reuse_pools`).  All pure functions of the cell tables.
 Input everywhere: the concatenation of ablation cell tables (columns ``alpha, sampler, converged, m_f,
 tau_s, tau_i, tau_f, cpu_s, wall_s, start``).  "Solve time" is the solve's CPU seconds (one thread per
 solve, so it equals wall time on an idle core and is robust to a loaded machine); "high quality" means
-converged (verified) and m_f ≥ β.
+converged (verified) and m_f ≥ β, the CR3BP family's quality filter (:class:`amorgs.problems.cr3bp.Cr3bpFilter`)
+at the β given.
 
 The arms compared against default to the roles of the table of arms (:mod:`amorgs.ablation.arms`):
 ``baseline`` its baseline (uniform multi-start), ``reuse`` its reuse arm (nearest_alpha) and the time cap's
@@ -28,11 +29,12 @@ import numpy as np
 import pandas as pd
 
 from amorgs.ablation.arms import BASELINE_ARM, HEADLINE_ARM, REUSE_ARM
+from amorgs.problems.cr3bp import Cr3bpFilter
 
 
 def high_quality(df: pd.DataFrame, beta_kg: float) -> pd.Series:
-    """Converged and m_f ≥ β."""
-    return df["converged"].astype(bool) & (df["m_f"] >= beta_kg)
+    """Per row: converged and m_f ≥ β (``beta_kg``, kg) — :class:`~amorgs.problems.cr3bp.Cr3bpFilter`'s mask."""
+    return Cr3bpFilter(min_final_mass_kg=beta_kg).mask(df)
 
 
 def wilson_interval(k: int, n: int, z: float = 1.96) -> tuple[float, float]:

@@ -1,8 +1,9 @@
-"""The β-filter: keep converged solutions whose quality passes the problem's threshold, and report on it.
+"""The quality report of a filtered solution table, and the β-filter by keyword.
 
-Thresholds: ``min_final_mass_kg`` (CR3BP: final mass m_f ≥ β kg, the paper's β = 415 kg) and
-``max_objective`` (De Jong: J ≤ the bound removes the converged stationary points on the far plateau,
-J ≈ 500, keeping the minima of the holes, J ≈ 1).  A threshold of ``None`` is not applied.
+What "high quality" means belongs to each problem family: its quality filter
+(:class:`~amorgs.problems.base.QualityFilter`: :class:`~amorgs.problems.cr3bp.Cr3bpFilter`, m_f ≥ β kg;
+:class:`~amorgs.problems.dejong.DejongFilter`, J ≤ a bound), which the workflow's filter step applies.
+:func:`high_quality` states the same thresholds by keyword for ``amorgs design``.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import pandas as pd
 def high_quality(
     df: pd.DataFrame, *, min_final_mass_kg: float | None = None, max_objective: float | None = None
 ) -> pd.DataFrame:
-    """Rows that converged and pass every given threshold (index reset, order kept)."""
+    """Rows that converged and pass every given threshold (index reset, order kept): final mass m_f ≥
+    ``min_final_mass_kg`` (kg), objective ≤ ``max_objective``; a threshold of ``None`` is not applied."""
     keep = df["converged"].astype(bool)
     if min_final_mass_kg is not None:
         keep &= df["m_f"] >= min_final_mass_kg

@@ -1,23 +1,39 @@
-"""Problem families: ``dejong`` (De Jong's 5th function) and ``cr3bp`` (low-thrust Earth–Moon transfer)."""
+"""Problem families: ``dejong`` (De Jong's 5th function) and ``cr3bp`` (low-thrust Earth–Moon transfer).
+
+Each family owns its contract (:class:`~amorgs.problems.base.Family`: α range, solver-options type, quality
+filter and their defaults, how to build the problem), declared as ``FAMILY`` in its module; :data:`FAMILIES`
+registers them.  The config, the workflow's wildcards and the contract test
+(``tests/unit/test_problem_contract.py``) all read this one table.
+"""
 
 from __future__ import annotations
 
 import importlib
-import math
 
-from amorgs.problems.base import LocalSolver, Problem, SolveRecord
+from amorgs.problems import cr3bp, dejong
+from amorgs.problems.base import Family, LocalSolver, Problem, QualityFilter, SolveRecord
 
-PROBLEMS = ("dejong", "cr3bp")
-#: The α each built-in family is defined for (inclusive): De Jong's rotation angle in rad, the CR3BP's
-#: maximum thrust in N.  The config check rejects any α outside before the first job starts.
-ALPHA_RANGES = {"dejong": (0.0, math.pi / 2), "cr3bp": (0.1, 1.0)}
+#: Every registered family by name, in the workflow's order.
+FAMILIES: dict[str, Family] = {f.name: f for f in (dejong.FAMILY, cr3bp.FAMILY)}
+PROBLEMS = tuple(FAMILIES)
+#: α range of each family (inclusive, in its ``alpha_unit``), read by ``amorgs design``; it is
+#: ``FAMILIES[name].alpha_range``.
+ALPHA_RANGES = {name: f.alpha_range for name, f in FAMILIES.items()}
+
+
+def get_family(name: str) -> Family:
+    """The registered family called ``name``; raises ``ValueError`` naming the valid choices."""
+    if name not in FAMILIES:
+        raise ValueError(f"unknown problem {name!r}; choose one of {PROBLEMS}")
+    return FAMILIES[name]
 
 
 def get_problem(name: str) -> Problem:
-    """Return the problem family called ``name``; raises ``ValueError`` naming the valid choices.
+    """Build the problem of the family called ``name``; raises ``ValueError`` naming the valid choices.
 
-    Besides the built-in names, ``"package.module:ClassName"`` loads a user-defined problem class that
-    follows :class:`Problem` (instantiated without arguments) — the extension point for new families.
+    Besides the registered names, ``"package.module:ClassName"`` loads a stand-in problem class that follows
+    :class:`Problem` (instantiated without arguments), for the multistart pool alone: the tests' crashing
+    problem uses it.  A family the workflow runs is registered in :data:`FAMILIES`.
     """
     if ":" in name:
         module_name, _, class_name = name.partition(":")
@@ -26,15 +42,8 @@ def get_problem(name: str) -> Problem:
         except (ImportError, AttributeError) as exc:
             raise ValueError(f"cannot load problem {name!r}: {exc}") from None
         return cls()
-    if name == "dejong":
-        from amorgs.problems.dejong import DeJong5
-
-        return DeJong5()
-    if name == "cr3bp":
-        from amorgs.problems.cr3bp.problem import LowThrustTransfer
-
-        return LowThrustTransfer.from_resource()
-    raise ValueError(f"unknown problem {name!r}; choose one of {PROBLEMS}")
+    return get_family(name).build()
 
 
-__all__ = ["ALPHA_RANGES", "PROBLEMS", "LocalSolver", "Problem", "SolveRecord", "get_problem"]
+__all__ = ["ALPHA_RANGES", "FAMILIES", "PROBLEMS", "Family", "LocalSolver", "Problem", "QualityFilter", "SolveRecord",
+           "get_family", "get_problem"]

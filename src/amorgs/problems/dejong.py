@@ -7,6 +7,9 @@ Models", Sec. III.A (Eq. 19–20) and Sec. V.A (Eq. 38); spec ``lt-cr3bp.md`` §
 
 with R(α) the counter-clockwise rotation by α ∈ [0, π/2] and A the 2×8 matrix of Eq. 38 (two clusters of
 four holes).  Every quantity here is dimensionless.
+
+The family's contract (:data:`FAMILY`): α ∈ [0, π/2] rad, the local solver scipy BFGS with
+:class:`~amorgs.solvers.options.BfgsOptions`, and "high quality" = converged with J ≤ 10 (:class:`DejongFilter`).
 """
 
 from __future__ import annotations
@@ -14,12 +17,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
+from typing import Annotated
 
 import numpy as np
-from scipy.optimize import minimize
+import pandas as pd
+from pydantic import ConfigDict, Field
+from pydantic.dataclasses import dataclass
 
-from amorgs.problems import ALPHA_RANGES
-from amorgs.problems.base import SolveRecord, check_alpha, check_vector
+from amorgs.problems.base import Family, QualityFilter, SolveRecord, check_alpha, check_vector
 from amorgs.solvers.options import BfgsOptions, as_options
 
 #: Eq. 38: eight holes in two clusters of four (columns are (x₁, x₂) at α = 0).
@@ -96,7 +101,7 @@ class DeJong5:
     variable_names: tuple[str, ...] = ("x1", "x2")
     lower = np.array([-50.0, -50.0])
     upper = np.array([50.0, 50.0])
-    alpha_range = ALPHA_RANGES["dejong"]
+    alpha_range = (0.0, math.pi / 2)
     options_type = BfgsOptions
 
     def sample_uniform(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -132,6 +137,8 @@ class DeJongBFGS:
         Invalid ``alpha``/``x0`` raise ``ValueError``; numerical failures return status ``exception``.
         """
         p = self.problem
+        from scipy.optimize import minimize  # here, not at the top: the family's contract is read without scipy
+
         a = check_alpha(alpha, p.alpha_range, p.name)
         x0 = p.check_guess(x0)
         A = minima_matrix(a)
@@ -169,3 +176,22 @@ class DeJongBFGS:
             cpu_s=cpu,
             message=str(res.message),
         )
+
+
+@dataclass(frozen=True, config=ConfigDict(extra="forbid"))
+class DejongFilter(QualityFilter):
+    """High quality: converged with J ≤ ``max_objective`` (null: every converged solve).  The bound removes
+    the converged stationary points on the far plateau (J ≈ 500) and keeps the minima of the holes (J ≈ 1)."""
+
+    max_objective: Annotated[float | None, Field(description=(
+        "keep converged solves with objective J ≤ this (J is dimensionless: ≈ 1 in a hole, ≈ 500 on the "
+        "plateau); null: every converged solve"))] = 10.0
+
+    def passes(self, table: pd.DataFrame) -> pd.Series:
+        if self.max_objective is None:
+            return pd.Series(True, index=table.index)
+        return table["objective"] <= self.max_objective
+
+
+FAMILY = Family(name=DeJong5.name, alpha_range=DeJong5.alpha_range, alpha_unit="rad", options_type=DeJong5.options_type,
+                quality_type=DejongFilter, build=DeJong5)

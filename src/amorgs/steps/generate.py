@@ -3,28 +3,36 @@
 from __future__ import annotations
 
 import time
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from amorgs import layout
 from amorgs.alphas import alpha_label
 from amorgs.config import Config, Section
 from amorgs.data.seeds import shard_seed
-from amorgs.problems import PROBLEMS
-from amorgs.solvers.options import BfgsOptions, IpoptOptions
+from amorgs.problems import FAMILIES, PROBLEMS
+from amorgs.solvers.options import as_options
 from amorgs.steps import Job, Step, Wildcards, resources_of
 
 
 class GenerateSettings(Section):
     """One shard: ``starts`` uniform starts at the exact ``alpha`` with ``seed`` (derived from the config's
-    base seed, the problem, α and the shard index) and the problem's solver options."""
+    base seed, the problem, α and the shard index) and the problem's solver options (validated as its family's
+    ``options_type``)."""
 
     problem: Literal[PROBLEMS]  # type: ignore[valid-type]
     alpha: float
     seed: Annotated[int, Field(ge=0)]
     starts: Annotated[int, Field(ge=1)]
-    solver: IpoptOptions | BfgsOptions = Field(union_mode="left_to_right")
+    solver: Any = Field(description="the options of the problem's solver, an instance of its family's options_type")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _solver_of_the_problem(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("problem") in FAMILIES and "solver" in data:
+            data = {**data, "solver": as_options(FAMILIES[data["problem"]].options_type, data["solver"])}
+        return data
 
 
 def generate_settings(cfg: Config, w: Wildcards) -> GenerateSettings:

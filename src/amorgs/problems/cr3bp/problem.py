@@ -13,8 +13,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from amorgs.problems import ALPHA_RANGES
 from amorgs.problems.base import check_alpha, check_vector
+from amorgs.problems.cr3bp import FAMILY
 from amorgs.problems.cr3bp.boundary import load_boundary_conditions
 from amorgs.problems.cr3bp.propagation import independent_defect
 from amorgs.problems.cr3bp.transcription import (
@@ -30,9 +30,9 @@ from amorgs.solvers.options import IpoptOptions, TranscriptionOptions, as_option
 class LowThrustTransfer:
     """Problem family: minimum-fuel transfer from the GTO spiral end to the L1-halo stable manifold."""
 
-    name = "cr3bp"
-    alpha_range = ALPHA_RANGES["cr3bp"]
-    options_type = IpoptOptions
+    name = FAMILY.name
+    alpha_range = FAMILY.alpha_range
+    options_type = FAMILY.options_type
 
     def __init__(self, boundary_conditions: dict):
         self.initial_state = np.asarray(boundary_conditions["initial_state"], float)
