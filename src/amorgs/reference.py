@@ -83,10 +83,11 @@ def starts_table(cells: dict[str, pd.DataFrame]) -> pd.DataFrame:
 
 
 def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | Path = ".",
-                     library_dir: str | Path = "data/library", problem: str = "cr3bp") -> dict:
+                     library_dir: str | Path = "data/library", problem: str = "cr3bp", figures: bool = True) -> dict:
     """Copy the reference outputs of the finished run of ``config_file`` in ``run_dir`` to ``dest`` and write
     ``dest/provenance.json``; returns the manifest.  Files in ``dest`` that the manifest does not list are
-    removed, so the directory is exactly one run."""
+    removed, so the directory is exactly one run.  ``figures=False`` leaves the figures out (they are
+    regenerated from the tables by the same run; e.g. the frontier's folds, whose figure is the aggregation's)."""
     run, dst = Path(run_dir), Path(dest)
     cfg = load_config(run / config_file)
     missing = [p for p in targets(cfg) if not (run / p).is_file()]
@@ -96,7 +97,7 @@ def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | P
 
     files = []
     for rule, names in EXPORTED_OUTPUTS.items():
-        for name in names:
+        for name in (n for n in names if figures or n != "figures"):
             for path in outputs_of(rule, cfg, name):
                 target = dst / _relative(path)
                 with atomic_path(target) as tmp:

@@ -275,6 +275,8 @@ def _check_reference_export(wd: Path, ref: Path, cfg) -> None:
     assert out.returncode == 0 and "2 of 2 re-solved starts" in out.stdout, out.stdout + out.stderr
     cert = json.loads(cert_file.read_text())
     assert cert["exact"] and cert["max_abs_dm_f_kg"] == 0.0 and len(cert["rows"]) == 2
+    bare = export_reference("config/smoke.yaml", ref.parent / "bare", run_dir=wd, figures=False)
+    assert {f["file"] for f in bare["files"]} == files - {f for f in files if f.startswith("figures/")}
 
     out = subprocess.run([sys.executable, "-m", "amorgs", "reference-export", "--dest", str(ref), "--check"],
                          capture_output=True, text=True, env=ENV)
