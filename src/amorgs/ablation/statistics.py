@@ -263,8 +263,12 @@ def _found_counter(hq: np.ndarray, features: np.ndarray | None = None, eta: floa
     η-distinct high-quality optima (:func:`_new_optima`)."""
     if features is None:
         return lambda index: hq[index].sum(-1)
-    flags = _new_optima(hq, features, eta)
-    return lambda index: flags(index).sum(-1)
+    # Each start's flag is fixed by the arm's own draw order, and a resample counts the flags of the starts it
+    # holds.  Recomputing the flags per resample would count a start drawn twice once — a duplicate no real
+    # rerun produces at the bootstrap's rate (≈ 37 % of a resample's draws repeat one) — and bias every
+    # resampled aRT per distinct optimum upward, past its own point estimate.
+    flags = _new_optima(hq, features, eta)(np.arange(len(hq)))
+    return lambda index: flags[index].sum(-1)
 
 
 def _art(cost: np.ndarray, count) -> float:
