@@ -113,25 +113,43 @@ def run_command(run: Path, snakemake: str = "snakemake") -> str:
 
 def read_run(run_dir: str | Path, design: str | None = None) -> FrontierRun:
     """One finished fold: its config and every cell table its ablation wrote (the main model seed's and the
-    replicates'; ``InputError`` naming the first missing one).  ``design``: the design's name (default: the
+    replicates'; ``InputError`` naming the first missing one) — from the fold's run directory, or from its
+    committed reference (``amorgs reference-export --starts-only``: ``starts.parquet`` holds every cell's starts
+    with the columns the statistics read; its files are checked against the manifest first).  ``design``: the design's name (default: the
     run directory's name up to its last ``-``, ``loo`` for ``loo-0.500``; the whole name when it has none)."""
+    from amorgs.reference import STARTS_FILE, verify_reference
+
     run = Path(run_dir)
     config = run / RUN_CONFIG
     if not config.is_file():
-        raise InputError(f"{run}: no {RUN_CONFIG} (a fold directory written by `amorgs frontier-plan`)")
+        raise InputError(f"{run}: no {RUN_CONFIG} (a fold directory written by `amorgs frontier-plan`, or its "
+                         "committed reference)")
     cfg = load_config(config)
-    paths = [run / p for rule in ("ablation_cell", "ablation_cell_replicate")
-             for p in steps.outputs_of(rule, cfg, "table")]
-    missing = [p for p in paths if not p.is_file()]
-    if missing or not paths:
-        raise InputError(f"{run}: the run is not finished: {missing[0] if missing else 'no ablation cells'} is missing")
+    rules = ("ablation_cell", "ablation_cell_replicate")
+    cells_of_run = [p for rule in rules for p in steps.outputs_of(rule, cfg, "table")]
+    if (run / STARTS_FILE).is_file():  # a committed reference of the fold: its starts, checked against the manifest
+        verify_reference(run)
+        if cfg.cr3bp_analysis.params.diversity.features != "times":
+            raise InputError(f"{config}: the starts keep the solution's times only; η-distinctness with features "
+                             f"{cfg.cr3bp_analysis.params.diversity.features!r} needs the fold's run directory")
+        starts = pd.read_parquet(run / STARTS_FILE)
+        wanted = {p.removeprefix("results/") for p in cells_of_run}
+        if set(starts["cell"]) < wanted:
+            raise InputError(f"{run / STARTS_FILE}: no starts of {sorted(wanted - set(starts['cell']))[0]}")
+        cells = starts[starts["cell"].isin(wanted)].drop(columns="cell").reset_index(drop=True)
+    else:
+        paths = [run / p for p in cells_of_run]
+        missing = [p for p in paths if not p.is_file()]
+        if missing or not paths:
+            raise InputError(f"{run}: the run is not finished: {missing[0] if missing else 'no ablation cells'} is "
+                             "missing")
+        cells = pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
     name = run.resolve().name
     if design is None:
         design = name.rpartition("-")[0] if name.startswith("loo-") else name
     return FrontierRun(design=design, run=name, train=cfg.problems.cr3bp.alphas.train_values(),
                        beta_kg=cfg.problems.cr3bp.filter.min_final_mass_kg,
-                       eta=cfg.cr3bp_analysis.params.diversity.eta,
-                       cells=pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True))
+                       eta=cfg.cr3bp_analysis.params.diversity.eta, cells=cells)
 
 
 def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] | None = None, reuse: str = REUSE_ARM,

@@ -9,9 +9,9 @@ Layout (paths keep their place under ``results/``)::
     reference/<name>/config.yaml (the config file the run read, verbatim: its SHA-256 is ``config_sha256``)
 
 ``starts.parquet``: every start of every ablation cell of the run, compact (:func:`starts_table`: the key, arm and
-model seed, the 64 guess columns, and what the solve gave — status, verdict, iterations, m_f, objective,
-defects, CPU and wall seconds, solver-options hash; the solution's other 63 columns are dropped, a re-solve
-reproduces them).  :func:`certify_reference` re-solves a seeded sample of these starts with the solver options
+model seed, the 64 guess columns, and what the solve gave — status, verdict, iterations, the solution's times
+τ_s, τ_i, τ_f and m_f (what the statistics read: quality and the η-distinctness of Eq. 12), objective, defects,
+CPU and wall seconds, solver-options hash; the solution's 60 controls are dropped, a re-solve reproduces them).  :func:`certify_reference` re-solves a seeded sample of these starts with the solver options
 of the run's config and reports whether iterations and m_f match exactly: the reproducibility certificate
 (``amorgs reference-certify``).
 
@@ -59,7 +59,7 @@ STARTS_FILE = "starts.parquet"
 #: Its columns besides ``guess_*`` (those present in the cell tables, in this order), then ``cell``: the cell
 #: table's path under ``results/``.
 START_COLUMNS = ("problem", "sampler", "model_seed", "alpha", "seed", "start", "reuse_alpha", "reuse_pool_size",
-                 "status", "converged", "solver_success", "iterations", "m_f", "objective", "defect",
+                 "status", "converged", "solver_success", "iterations", "tau_s", "tau_i", "tau_f", "m_f", "objective", "defect",
                  "verify_defect", "cpu_s", "wall_s", "options_hash")
 #: Rules that train: their ``report`` output (``<model>.training.json``) holds ``train_cpu_s``.
 TRAIN_RULES = ("train_cr3bp", "train_cr3bp_replicate", "train_cr3bp_fraction")
@@ -83,11 +83,14 @@ def starts_table(cells: dict[str, pd.DataFrame]) -> pd.DataFrame:
 
 
 def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | Path = ".",
-                     library_dir: str | Path = "data/library", problem: str = "cr3bp", figures: bool = True) -> dict:
+                     library_dir: str | Path = "data/library", problem: str = "cr3bp", figures: bool = True,
+                     tables: bool = True) -> dict:
     """Copy the reference outputs of the finished run of ``config_file`` in ``run_dir`` to ``dest`` and write
     ``dest/provenance.json``; returns the manifest.  Files in ``dest`` that the manifest does not list are
     removed, so the directory is exactly one run.  ``figures=False`` leaves the figures out (they are
-    regenerated from the tables by the same run; e.g. the frontier's folds, whose figure is the aggregation's)."""
+    regenerated from the tables by the same run); ``tables=False`` leaves out every report output (tables,
+    figures, summaries): the starts, the config and the manifest — the frontier's folds, whose tables are the
+    aggregation's, computed from the starts (:func:`amorgs.frontier.read_run`)."""
     run, dst = Path(run_dir), Path(dest)
     cfg = load_config(run / config_file)
     missing = [p for p in targets(cfg) if not (run / p).is_file()]
@@ -96,7 +99,7 @@ def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | P
                          f"{config_file} first (snakemake --configfile {config_file})")
 
     files = []
-    for rule, names in EXPORTED_OUTPUTS.items():
+    for rule, names in EXPORTED_OUTPUTS.items() if tables else ():
         for name in (n for n in names if figures or n != "figures"):
             for path in outputs_of(rule, cfg, name):
                 target = dst / _relative(path)

@@ -178,7 +178,8 @@ def cmd_reference_export(args: argparse.Namespace) -> None:
         return
     if args.config is None:
         raise SystemExit("amorgs reference-export: --config is required (the config of the finished run)")
-    manifest = export_reference(args.config, args.dest, args.run_dir, args.library_dir, figures=not args.no_figures)
+    manifest = export_reference(args.config, args.dest, args.run_dir, args.library_dir, figures=not args.no_figures,
+                                tables=not args.starts_only)
     print(f"{args.dest}: {len(manifest['files'])} files from the run of {args.config} "
           f"({manifest['cpu_hours']['total']:.2f} CPU-hours, library of {manifest['library']['rows']} solves); "
           f"manifest {args.dest}/provenance.json")
@@ -382,6 +383,8 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--run-dir", default=".", help="the checkout the run ran in (its results/ and data/library)")
     p.add_argument("--library-dir", default="data/library", help="the library the run read, relative to --run-dir")
     p.add_argument("--no-figures", action="store_true", help="leave the figures out (tables, summaries and starts only)")
+    p.add_argument("--starts-only", action="store_true",
+                   help="only the starts (starts.parquet), the config and the manifest: no report outputs")
     p.add_argument("--check", action="store_true", help="verify the files of --dest against its manifest instead")
     p.set_defaults(func=cmd_reference_export)
 
