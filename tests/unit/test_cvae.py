@@ -86,7 +86,7 @@ def test_normalizer_round_trip_and_range():
     torch.testing.assert_close(u[:, :2].max(0).values, torch.ones(2))
     torch.testing.assert_close(u[:, 2], torch.zeros(len(x)))  # constant column: unit scale, offset removed
     torch.testing.assert_close(norm.inverse(u), xt, rtol=1e-6, atol=1e-5)
-    box = Normalizer.from_bounds(np.array([-50.0, -50.0]), np.array([50.0, 50.0]))
+    box = Normalizer(np.array([-50.0, -50.0]), np.array([50.0, 50.0]))  # fixed bounds, e.g. a problem's box
     torch.testing.assert_close(box.transform(torch.tensor([[0.0, 50.0]])), torch.tensor([[0.5, 1.0]]))
     with pytest.raises(ValueError, match="high"):
         Normalizer(np.array([1.0]), np.array([0.0]))

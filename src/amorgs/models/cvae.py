@@ -198,11 +198,6 @@ class Normalizer(nn.Module):
         x = torch.as_tensor(x, dtype=torch.float32)
         return cls(x.min(dim=0).values, x.max(dim=0).values)
 
-    @classmethod
-    def from_bounds(cls, low: np.ndarray, high: np.ndarray) -> Normalizer:
-        """Fixed bounds, e.g. a problem's box."""
-        return cls(low, high)
-
     def _scale(self) -> Tensor:
         span = self.high - self.low
         return torch.where(span > 0, span, torch.ones_like(span))
