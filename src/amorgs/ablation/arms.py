@@ -74,9 +74,10 @@ class Arm:
 
 
 _SAMPLERS = "amorgs.models.samplers"
+_BASELINES = "amorgs.models.baselines"  # the model-free samplers: building them imports no torch
 
 ARMS: tuple[Arm, ...] = (
-    Arm("uniform", "Uniform", f"{_SAMPLERS}:UniformSampler.build", role="baseline", paper=True),
+    Arm("uniform", "Uniform", f"{_BASELINES}:UniformSampler.build", role="baseline", paper=True),
     Arm("cvae_uniform_control", "CVAE time & mass, uniform control", f"{_SAMPLERS}:CVAETimeMassUniformControl.build",
         models=("cvae_gmm",), paper=True),
     Arm("uniform_lstm_control", "Uniform time & mass, LSTM control", f"{_SAMPLERS}:UniformTimeMassLSTMControl.build",
@@ -85,14 +86,14 @@ ARMS: tuple[Arm, ...] = (
         paper=True),
     Arm("amorgs", "AmorGS", f"{_SAMPLERS}:AmorGSSampler.build", models=("cvae_gmm", "lstm"), role="headline",
         paper=True),
-    Arm("nearest_alpha", "Nearest training α, reused", f"{_SAMPLERS}:NearestAlphaSampler.build",
+    Arm("nearest_alpha", "Nearest training α, reused", f"{_BASELINES}:NearestAlphaSampler.build",
         high_quality=True, pooled=True, role="reuse"),
-    Arm("nearest_alpha_perturbed", "Nearest training α + noise", f"{_SAMPLERS}:NearestAlphaPerturbedSampler.build",
+    Arm("nearest_alpha_perturbed", "Nearest training α + noise", f"{_BASELINES}:NearestAlphaPerturbedSampler.build",
         high_quality=True, pooled=True),
     Arm("gmm_lstm", "GMM time & mass, LSTM control", f"{_SAMPLERS}:GMMLSTMSampler.build", models=("lstm",),
         high_quality=True),
     # issue 21 §3: reuse moved along α by a secant between neighbouring training α (built to beat reuse)
-    Arm("continuation", "Nearest training α moved by a secant in α", f"{_SAMPLERS}:ContinuationSampler.build",
+    Arm("continuation", "Nearest training α moved by a secant in α", f"{_BASELINES}:ContinuationSampler.build",
         high_quality=True, pooled=True),
 )
 

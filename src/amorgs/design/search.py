@@ -178,7 +178,8 @@ def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_k
 def make_sampler(request: DesignRequest, cfg, problem):
     """The requested sampler and a provenance dict; missing inputs raise :class:`InputError` naming the file."""
     from amorgs.ablation.arms import build_sampler, get_arm
-    from amorgs.models.samplers import CHECKPOINTS, nearest_training_alpha
+    from amorgs.models.baselines import nearest_training_alpha
+    from amorgs.models.names import CHECKPOINTS
 
     arm = get_arm(request.sampler)
     section = cfg.problems.cr3bp

@@ -5,7 +5,7 @@ columns ``alpha`` and the stored decision vector ``tau_s, tau_i, tau_f`` (TU), `
 ``phi_kk`` (rad), ``rho_kk`` (throttle, [0, 1]) for k = 01 … 20.  Pass rows at the *training* α only: every
 row given is trained on, and nothing else about the data (its size, its α values) is assumed.
 
-The three models (checkpoint names are :data:`amorgs.models.samplers.CHECKPOINTS`)::
+The three models (checkpoint names are :data:`amorgs.models.names.CHECKPOINTS`)::
 
     cvae_gmm      GMMPriorCVAE   x = (τ_s, τ_i, τ_f, m_f)                     cond α
     vanilla_cvae  VanillaCVAE    x = (τ_s, τ_i, τ_f, m_f, u_1, …, u_20)       cond α
@@ -19,7 +19,8 @@ wraps (θ = 0.01 and 6.27 rad are neighbours but far apart as numbers), and θ i
 θ, φ both at zero throttle, so an MSE on (θ, φ, ρ) penalises distances that are not there; the components of
 u are continuous everywhere.  Three numbers per segment keep the vector 64 long, as in Table 5.
 :func:`vanilla_vectors` builds that layout and :func:`stored_from_vanilla` maps samples back to the stored
-layout (ρ = ‖u‖ clipped to 1).
+layout (ρ = ‖u‖ clipped to 1); both live in :mod:`amorgs.models.baselines` (the continuation baseline uses them
+without torch) and are imported here.
 
 Normalisation: every model gets a :class:`~amorgs.models.cvae.Normalizer` fitted on its training data
 (column-wise min/max), stored in its checkpoint, so a CVAE's sigmoid output spans the training range.
@@ -42,8 +43,9 @@ import numpy as np
 import pandas as pd
 import torch
 
+from amorgs.models.baselines import stored_from_vanilla, vanilla_vectors  # noqa: F401  (the layout, torch-free)
 from amorgs.models.cvae import CVAEConfig, GMMPriorCVAE, Normalizer, VanillaCVAE, VanillaCVAEConfig
-from amorgs.models.lstm import ControlLSTM, LSTMConfig, cartesian_controls, spherical_controls
+from amorgs.models.lstm import ControlLSTM, LSTMConfig, cartesian_controls
 from amorgs.models.training import TrainConfig, train
 from amorgs.problems.cr3bp.transcription import N_SEGMENTS, variable_names
 
@@ -95,20 +97,6 @@ def time_mass(hq: pd.DataFrame) -> np.ndarray:
 def stored_vectors(hq: pd.DataFrame) -> np.ndarray:
     """The stored decision vectors of every row, shape (n, 64) (:func:`variable_names` order)."""
     return hq[list(variable_names(N_SEGMENTS))].to_numpy(dtype=np.float64, copy=True)
-
-
-def vanilla_vectors(stored: np.ndarray) -> np.ndarray:
-    """Stored vectors (n, 64) → the vanilla CVAE's layout (τ_s, τ_i, τ_f, m_f, u_1x, u_1y, u_1z, …), (n, 64)."""
-    stored = np.asarray(stored, dtype=np.float64)
-    u = cartesian_controls(stored, N_SEGMENTS).reshape(len(stored), -1)
-    return np.concatenate([stored[:, :4], u], axis=1)
-
-
-def stored_from_vanilla(v: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`vanilla_vectors`: (n, 64) → stored layout (θ in [0, 2π), ρ = min(‖u‖, 1))."""
-    v = np.asarray(v, dtype=np.float64)
-    controls = spherical_controls(v[:, 4:].reshape(len(v), N_SEGMENTS, 3))
-    return np.concatenate([v[:, :4], controls], axis=1)
 
 
 def lstm_conditioning(time_and_mass: np.ndarray, alpha: float | np.ndarray) -> np.ndarray:

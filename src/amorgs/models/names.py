@@ -14,5 +14,7 @@ Presets pick layer widths: ``paper`` (Tables 4–5) or ``small`` (CPU-friendly) 
 from __future__ import annotations
 
 CR3BP_MODELS = ("cvae_gmm", "vanilla_cvae", "lstm")
+#: Model name → checkpoint file name inside a models directory (written by the train step).
+CHECKPOINTS = {name: f"{name}.pt" for name in CR3BP_MODELS}
 CR3BP_PRESETS = ("paper", "small")
 DEJONG_PRESETS = ("dejong_paper", "small")

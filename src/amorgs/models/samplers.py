@@ -26,6 +26,9 @@ and one built to beat reuse (issue 21 §3)::
     continuation             nearest_alpha's draw, each solution moved to α by a secant to its nearest
                              match at a neighbouring training α
 
+The model-free ones (uniform, the two nearest-α arms, continuation) are defined in
+:mod:`amorgs.models.baselines`, which imports no torch, and re-exported here.
+
 The LSTM is deterministic given its conditioning; all randomness of a learned sampler comes from ``rng``:
 first one draw of the torch seed (when a CVAE is sampled), then the uniform parts in layout order.
 
@@ -37,53 +40,29 @@ high-quality table, the training α and the arm options.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
-from typing import Protocol
 
 import numpy as np
 import pandas as pd
 import torch
 
-from amorgs.alphas import alpha_label, same_alpha
 from amorgs.models import cvae, lstm
-from amorgs.models.cr3bp_models import lstm_conditioning, stored_from_vanilla, vanilla_vectors
-from amorgs.models.names import CR3BP_MODELS
+from amorgs.models.baselines import (  # noqa: F401  (the model-free samplers, re-exported: one place for all)
+    ContinuationSampler,
+    NearestAlphaPerturbedSampler,
+    NearestAlphaSampler,
+    Sampler,
+    UniformSampler,
+    make_valid,
+    nearest_training_alpha,
+    stored_from_vanilla,
+    training_rows,
+    usable_training_alphas,
+)
+from amorgs.models.cr3bp_models import lstm_conditioning
+from amorgs.models.names import CHECKPOINTS  # noqa: F401  (re-exported)
 from amorgs.problems import Problem
 from amorgs.problems.base import check_alpha
-
-#: Model name → checkpoint file name inside a models directory (written by the train step).
-CHECKPOINTS = {name: f"{name}.pt" for name in CR3BP_MODELS}
-
-
-class Sampler(Protocol):
-    name: str
-
-    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray: ...
-
-
-def make_valid(x: np.ndarray, problem: Problem) -> np.ndarray:
-    """Wrap azimuths (every ``theta_*`` column) to [0, 2π) and clip everything else into the bounds."""
-    x = np.array(x, dtype=float, copy=True)
-    theta = [i for i, name in enumerate(problem.variable_names) if name.startswith("theta_")]
-    x[:, theta] = np.mod(x[:, theta], 2 * math.pi)
-    return np.clip(x, problem.lower, problem.upper)
-
-
-class UniformSampler:
-    """The naive baseline: the problem's own uniform initial-guess distribution (spec §6)."""
-
-    name = "uniform"
-
-    def __init__(self, problem: Problem):
-        self.problem = problem
-
-    @classmethod
-    def build(cls, problem: Problem, inputs) -> UniformSampler:
-        return cls(problem)
-
-    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
-        return make_valid(self.problem.sample_uniform(alpha, n, rng), self.problem)
 
 
 def torch_generator(rng: np.random.Generator) -> torch.Generator:
@@ -176,134 +155,6 @@ class AmorGSSampler:
         return make_valid(x, self.problem)
 
 
-# --------------------------------------------------------------------------------- non-neural baselines
-#
-# Three arms that answer "does learning beat reusing known solutions?" (issue 11).  They read the filtered
-# high-quality table (``results/cr3bp/high_quality.parquet``) restricted to the *training* α: a row whose α
-# has the label (three decimals) of the queried α is never used, so a test α can never see its own solutions.
-
-
-def _training_rows(high_quality: pd.DataFrame, train_alphas, names) -> dict[float, np.ndarray]:
-    """Training α → the decision vectors (m, 3N+4) of its high-quality rows; α without rows are left out."""
-    if high_quality is None or not len(high_quality):
-        raise ValueError("the high-quality table is empty: the nearest-α / GMM baselines need training solutions")
-    wanted = {alpha_label(a): float(a) for a in train_alphas}
-    labels = high_quality["alpha"].map(alpha_label)
-    out: dict[float, np.ndarray] = {}
-    for label, alpha in sorted(wanted.items(), key=lambda kv: kv[1]):
-        rows = high_quality[labels == label]
-        if len(rows):
-            out[alpha] = rows[list(names)].to_numpy(dtype=np.float64)
-    if not out:
-        raise ValueError(f"no high-quality rows at the training α {sorted(wanted.values())}")
-    return out
-
-
-def _usable(by_alpha: dict[float, np.ndarray], alpha: float) -> list[float]:
-    """The training α available at query ``alpha`` (any α sharing its three-decimal label excluded), sorted."""
-    keep = [a for a in sorted(by_alpha) if not same_alpha(a, alpha)]
-    if not keep:
-        raise ValueError(f"no training α other than the queried α = {alpha!r}")
-    return keep
-
-
-def nearest_training_alpha(by_alpha: dict[float, np.ndarray], alpha: float) -> float:
-    """The training α closest to ``alpha`` (ties: the smaller one), never ``alpha`` itself."""
-    keep = _usable(by_alpha, alpha)
-    return min(keep, key=lambda a: (abs(a - alpha), a))
-
-
-class NearestAlphaSampler:
-    """Reuse, unchanged, the high-quality solutions of the nearest *training* α (its *pool*, :meth:`pool`).
-    No learning at all.  ``n`` rows are drawn *without* replacement while the pool lasts — start i < pool size
-    is a pool row not drawn before (one ``rng.permutation`` of the pool) — and the starts beyond the pool
-    uniformly *with* replacement (one ``rng.integers`` call): every start up to the pool size solves a new
-    guess, and the later ones repeat a start already solved."""
-
-    name = "nearest_alpha"
-
-    def __init__(self, problem: Problem, high_quality: pd.DataFrame, train_alphas):
-        self.problem = problem
-        self.by_alpha = _training_rows(high_quality, train_alphas, problem.variable_names)
-
-    @classmethod
-    def build(cls, problem: Problem, inputs) -> NearestAlphaSampler:
-        return cls(problem, inputs.high_quality, inputs.train_alphas)
-
-    def pool(self, alpha: float) -> tuple[float, int]:
-        """(the training α whose high-quality rows are reused at ``alpha``, the number of those rows)."""
-        source = nearest_training_alpha(self.by_alpha, check_alpha(alpha, self.problem.alpha_range, self.problem.name))
-        return source, len(self.by_alpha[source])
-
-    def _draw(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
-        rows = self.by_alpha[self.pool(alpha)[0]]
-        fresh = rng.permutation(len(rows))[:n]
-        again = rng.integers(0, len(rows), size=n - len(fresh))
-        return rows[np.concatenate([fresh, again])]
-
-    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
-        return make_valid(self._draw(alpha, n, rng), self.problem)
-
-
-class NearestAlphaPerturbedSampler(NearestAlphaSampler):
-    """:class:`NearestAlphaSampler` plus Gaussian noise in the *normalised box*: each coordinate is mapped
-    to [0, 1] by (x − lower)/(upper − lower) (τ by 40/15/15 TU, m_f by m0, θ by 2π, φ by π, ρ by 1), noise
-    N(0, ``scale``²) is added there (one ``rng.normal`` call after the row draw), mapped back, then
-    :func:`make_valid` wraps the azimuths and clips the rest into the bounds."""
-
-    name = "nearest_alpha_perturbed"
-
-    def __init__(self, problem: Problem, high_quality: pd.DataFrame, train_alphas, scale: float = 0.02):
-        super().__init__(problem, high_quality, train_alphas)
-        if not (scale >= 0 and math.isfinite(scale)):
-            raise ValueError(f"perturbation scale must be a finite number ≥ 0, got {scale!r}")
-        self.scale = float(scale)
-
-    @classmethod
-    def build(cls, problem: Problem, inputs) -> NearestAlphaPerturbedSampler:
-        return cls(problem, inputs.high_quality, inputs.train_alphas, inputs.perturbation_scale)
-
-    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
-        x = self._draw(alpha, n, rng)
-        span = self.problem.upper - self.problem.lower
-        z = (x - self.problem.lower) / span + rng.normal(0.0, self.scale, size=x.shape)
-        return make_valid(self.problem.lower + z * span, self.problem)
-
-
-class ContinuationSampler(NearestAlphaSampler):
-    """Reuse moved along α by a secant.  Each start is a solution x₀ of the nearest training α a₀, drawn as
-    :class:`NearestAlphaSampler` draws; a *partner* training α a₁ is chosen (:meth:`partner`: the nearest on
-    the other side of α when there is one — interpolation —, else the next nearest — extrapolation); x₀ is
-    matched to its nearest high-quality solution x₁ at a₁ and moved to x = x₀ + (α − a₀)/(a₁ − a₀)·(x₁ − x₀).
-    Matching and the secant use the vanilla CVAE's layout (τ, m_f and the Cartesian throttle vectors u_k,
-    :func:`~amorgs.models.cr3bp_models.vanilla_vectors`: the azimuths of a coasting segment are arbitrary and
-    carry no distance) divided by the box widths (τ by 40/15/15 TU, m_f by m0, u by 2); x is mapped back
-    (:func:`~amorgs.models.cr3bp_models.stored_from_vanilla`) and made valid.  Uses no randomness beyond
-    the row draw; with a single training α it is :class:`NearestAlphaSampler`."""
-
-    name = "continuation"
-
-    def partner(self, alpha: float) -> float:
-        """The training α a₁ of the secant at ``alpha`` (a₀ itself when no other is usable)."""
-        a0 = self.pool(alpha)[0]
-        others = [a for a in _usable(self.by_alpha, alpha) if a != a0]
-        across = [a for a in others if (a - alpha) * (a0 - alpha) < 0]
-        return min(across or others, key=lambda a: (abs(a - alpha), a)) if others else a0
-
-    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
-        from scipy.spatial import cKDTree
-
-        a0, a1 = self.pool(alpha)[0], self.partner(alpha)
-        x0 = self._draw(alpha, n, rng)
-        if a1 == a0:
-            return make_valid(x0, self.problem)
-        scale = np.concatenate([(self.problem.upper - self.problem.lower)[:4], np.full(x0.shape[1] - 4, 2.0)])
-        v0, v1 = vanilla_vectors(x0) / scale, vanilla_vectors(self.by_alpha[a1]) / scale
-        match = cKDTree(v1).query(v0)[1]
-        v = v0 + (alpha - a0) / (a1 - a0) * (v1[match] - v0)
-        return make_valid(stored_from_vanilla(v * scale), self.problem)
-
-
 class GMMLSTMSampler:
     """A cheap non-neural density for (τ_s, τ_i, τ_f, m_f) with the LSTM's controls.
 
@@ -323,7 +174,7 @@ class GMMLSTMSampler:
 
         self.problem = problem
         self.lstm = control_lstm
-        self.by_alpha = _training_rows(high_quality, train_alphas, problem.variable_names)
+        self.by_alpha = training_rows(high_quality, train_alphas, problem.variable_names)
         self.mixtures: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         for a, rows in self.by_alpha.items():
             tm = rows[:, :4]
@@ -340,7 +191,7 @@ class GMMLSTMSampler:
 
     def bracket(self, alpha: float) -> tuple[tuple[float, float], tuple[float, float]]:
         """((a, w_a), (b, w_b)): the training α whose mixtures are blended at ``alpha`` and their weights."""
-        keep = _usable(self.by_alpha, alpha)
+        keep = usable_training_alphas(self.by_alpha, alpha)
         below = [a for a in keep if a <= alpha]
         above = [a for a in keep if a >= alpha]
         if not below or not above:
