@@ -30,6 +30,9 @@ store therefore holds an exclusive ``flock`` on ``.lock``: writes take milliseco
 
 Failure policy: a job never fails because of tracking.  A missing store or an MLflow error prints one
 warning to the job's log and the job goes on untracked.
+
+MLflow is imported where it is used, not with this module (≈ 2–3 s): an untracked job never loads it, and
+:func:`standalone_run` can open its run in the background while the caller works (``amorgs design``).
 """
 
 from __future__ import annotations
@@ -50,13 +53,14 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+from amorgs.data.io import read_json, write_json
+
+if TYPE_CHECKING:
+    from mlflow.tracking import MlflowClient
 
 os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
-
-from mlflow.entities import DatasetInput, InputTag, LoggedModelOutput, Metric, Param  # noqa: E402
-from mlflow.tracking import MlflowClient  # noqa: E402
-
-from amorgs.data.io import read_json, write_json  # noqa: E402
 
 #: The store, relative to the repository root (the workflow's working directory).
 STORE_DIR = Path("results/mlflow")
@@ -141,6 +145,20 @@ def _locked(store_dir: Path) -> Iterator[None]:
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
+def _client(uri: str) -> MlflowClient:
+    """An MLflow client of ``uri`` (MLflow imported here, on first use)."""
+    from mlflow.tracking import MlflowClient
+
+    return MlflowClient(uri)
+
+
+def _params(flat: dict[str, str]) -> list:
+    """MLflow ``Param`` entities of a flat mapping, values cut to MLflow's 6000 characters."""
+    from mlflow.entities import Param
+
+    return [Param(k, v[:6000]) for k, v in flat.items()]
+
+
 def _flatten(mapping: dict, prefix: str = "") -> dict[str, str]:
     out: dict[str, str] = {}
     for key, value in mapping.items():
@@ -193,7 +211,7 @@ def start_invocation(
 def _close_killed(previous: dict) -> None:
     """Close the previous invocation's parent run and its job runs that are still RUNNING as KILLED."""
     try:
-        client = MlflowClient(previous["tracking_uri"])
+        client = _client(previous["tracking_uri"])
         parent = previous["parent_run_id"]
         children = client.search_runs(
             [previous["experiment_id"]],
@@ -217,7 +235,7 @@ def _open_parent_run(
     uri: str | None = None,
 ) -> str:
     uri = resolve_tracking_uri(uri, store)
-    client = MlflowClient(uri)
+    client = _client(uri)
     if previous is not None:
         _close_killed(previous)
     exp = client.get_experiment_by_name(experiment)
@@ -236,7 +254,7 @@ def _open_parent_run(
         **package_versions(),
     }
     run_id = client.create_run(exp_id, run_name=f"workflow {now} config {config_hash}", tags=tags).info.run_id
-    params = [Param(k, v[:6000]) for k, v in _flatten(config).items()]
+    params = _params(_flatten(config))
     for i in range(0, len(params), 100):
         client.log_batch(run_id, params=params[i : i + 100])
     client.log_dict(run_id, config, "config.yaml")
@@ -266,7 +284,7 @@ def finish_invocation(status: str, store_dir: str | Path = STORE_DIR) -> None:
     try:
         inv = read_json(path)
         with _locked(store):
-            MlflowClient(inv["tracking_uri"]).set_terminated(inv["parent_run_id"], status)
+            _client(inv["tracking_uri"]).set_terminated(inv["parent_run_id"], status)
     except Exception as exc:  # noqa: BLE001
         _warn("closing the workflow run", exc)
 
@@ -284,11 +302,19 @@ class JobRun:
         self._client = client
         self.run_id = run_id
         self.experiment_id = experiment_id
-        self._metrics: list[Metric] = []
+        self._metrics: list = []  # mlflow.entities.Metric, queued
         self._model_id: str | None = None
         self._dataset: tuple[str, str] | None = None  # (name, digest) of the training data, linked to metrics
+        self._opening: threading.Thread | None = None  # the run being opened in the background (standalone_run)
+
+    def _opened(self) -> None:
+        """Wait until a run opened in the background (:func:`standalone_run`) exists, or failed to."""
+        if self._opening is not None:
+            self._opening.join()
+            self._opening = None
 
     def _call(self, method: str, *args, **kwargs) -> None:
+        self._opened()
         if self._client is None:
             return
         try:
@@ -300,7 +326,10 @@ class JobRun:
 
     def log_params(self, params: dict) -> None:
         """Log parameters (nested dicts flattened with dots, lists as JSON)."""
-        flat = [Param(k, v[:6000]) for k, v in _flatten(params).items()]
+        self._opened()
+        if self._client is None:
+            return
+        flat = _params(_flatten(params))
         for i in range(0, len(flat), 100):
             self._call("log_batch", params=flat[i : i + 100])
 
@@ -310,6 +339,10 @@ class JobRun:
         Between :meth:`start_model` and :meth:`finish_model` they are linked to that logged model (and to the
         last ``training`` dataset logged).
         """
+        if self._client is None and self._opening is None:  # untracked: nothing to write, ever
+            return
+        from mlflow.entities import Metric
+
         ts = int(time.time() * 1000)
         name, digest = self._dataset or (None, None)
         self._metrics.extend(
@@ -336,12 +369,14 @@ class JobRun:
         Only metadata is stored: the file's name and URI, a digest of the content, the schema and the row
         count, never a copy of the table.
         """
+        self._opened()
         if self._client is None:
             return
         try:
             import warnings
 
             import mlflow.data
+            from mlflow.entities import DatasetInput, InputTag
 
             with warnings.catch_warnings():  # MLflow's own notes on source resolution and pandas deprecations
                 warnings.simplefilter("ignore")
@@ -356,6 +391,7 @@ class JobRun:
 
     def start_model(self, name: str, params: dict | None = None) -> None:
         """Create the MLflow logged model ``name`` of this run; metrics logged until :meth:`finish_model` link to it."""
+        self._opened()
         if self._client is None:
             return
         try:
@@ -379,6 +415,8 @@ class JobRun:
         self.log_artifact(checkpoint, "models")
         if self._client is None or model_id is None:
             return
+        from mlflow.entities import LoggedModelOutput
+
         try:
             with tempfile.TemporaryDirectory() as tmp:
                 shutil.copy(checkpoint, tmp)
@@ -392,6 +430,7 @@ class JobRun:
 
     def close(self, status: str) -> None:
         """Flush the metrics and end the run with ``status`` (``FINISHED``, ``FAILED``, ``KILLED``)."""
+        self._opened()
         self.flush()
         if self._model_id is not None and self._client is not None:  # a model whose training never finished
             try:
@@ -410,7 +449,7 @@ def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
         print(f"amorgs.tracking: no MLflow invocation under {store}; {rule} runs untracked", file=sys.stderr)
         return JobRun(store)
     try:
-        client = MlflowClient(inv["tracking_uri"])
+        client = _client(inv["tracking_uri"])
         tags = {
             "mlflow.parentRunId": inv["parent_run_id"],
             "kind": "job",
@@ -465,28 +504,45 @@ def _closing(job: JobRun) -> Iterator[JobRun]:
 
 @contextmanager
 def standalone_run(
-    name: str, experiment: str, store_dir: str | Path = STORE_DIR, uri: str | None = None, tags: dict | None = None
+    name: str,
+    experiment: str,
+    store_dir: str | Path = STORE_DIR,
+    uri: str | None = None,
+    tags: dict | None = None,
+    background: bool = False,
 ) -> Iterator[JobRun]:
     """One top-level MLflow run outside any workflow invocation (e.g. ``amorgs design``), with the same
     :class:`JobRun` API and end states as :func:`job_run`; tagged with the git state and package versions.
 
     It never reads or writes ``invocation.json``, so it can run beside a workflow on the same store.  The
     tracking URI is :func:`resolve_tracking_uri` of ``uri``.  Untracked (with a warning) if MLflow fails.
+    ``background``: MLflow is loaded and the run created in a thread, and the caller goes on at once; every
+    method of the run waits for it first (nothing is lost, the end states are the same).
     """
     store = Path(store_dir)
-    try:
-        resolved = resolve_tracking_uri(uri, store)
-        client = MlflowClient(resolved)
-        with _locked(store):
-            exp = client.get_experiment_by_name(experiment)
-            artifacts = (store / "artifacts").resolve().as_uri() if resolved == tracking_uri(store) else None
-            exp_id = exp.experiment_id if exp is not None else client.create_experiment(experiment, artifact_location=artifacts)
-            run_tags = {"kind": "standalone", "host": socket.gethostname(), **git_state(), **package_versions(), **(tags or {})}
-            run = client.create_run(exp_id, run_name=name, tags=run_tags)
-        job = JobRun(store, client, run.info.run_id, exp_id)
-    except Exception as exc:  # noqa: BLE001 — tracking never fails the command
-        _warn(f"opening the {name} run", exc)
-        job = JobRun(store)
+    job = JobRun(store)
+
+    def open_run() -> None:
+        try:
+            resolved = resolve_tracking_uri(uri, store)
+            client = _client(resolved)
+            with _locked(store):
+                exp = client.get_experiment_by_name(experiment)
+                artifacts = (store / "artifacts").resolve().as_uri() if resolved == tracking_uri(store) else None
+                exp_id = (exp.experiment_id if exp is not None
+                          else client.create_experiment(experiment, artifact_location=artifacts))
+                run_tags = {"kind": "standalone", "host": socket.gethostname(), **git_state(), **package_versions(),
+                            **(tags or {})}
+                run = client.create_run(exp_id, run_name=name, tags=run_tags)
+            job._client, job.run_id, job.experiment_id = client, run.info.run_id, exp_id
+        except Exception as exc:  # noqa: BLE001 — tracking never fails the command
+            _warn(f"opening the {name} run", exc)
+
+    if background:
+        job._opening = threading.Thread(target=open_run, name="amorgs-mlflow-open", daemon=True)
+        job._opening.start()
+    else:
+        open_run()
     with _closing(job) as opened:
         yield opened
 
@@ -528,7 +584,7 @@ def tracked_jobs(store_dir: str | Path = STORE_DIR) -> dict:
     inv = read_json(store / INVOCATION_FILE)
     if inv["tracking_uri"] == tracking_uri(store) and not (store / DB_NAME).exists():
         raise FileNotFoundError(store / DB_NAME)
-    client = MlflowClient(inv["tracking_uri"])
+    client = _client(inv["tracking_uri"])
     with _locked(store):
         parent = client.get_run(inv["parent_run_id"])
         runs = client.search_runs([inv["experiment_id"]], filter_string="tags.kind = 'job'", max_results=50000)

@@ -140,6 +140,37 @@ def test_the_next_invocation_closes_runs_left_running_by_kill_9(tmp_path):
     assert client.get_run(second).info.status == "RUNNING"
 
 
+@pytest.mark.parametrize("background", [False, True])
+def test_a_standalone_run_opened_in_the_background_logs_everything_and_ends_as_in_the_foreground(tmp_path, background):
+    """`amorgs design` opens its run in a thread while it solves: params, metrics per step and artifacts all
+    reach the run, which ends FINISHED, or KILLED on Ctrl-C, exactly as a run opened in the foreground."""
+    store = tmp_path / "mlflow"
+    (tmp_path / "a.txt").write_text("artifact")
+    with tracking.standalone_run("design x", "exp", store_dir=store, tags={"rule": "design"}, background=background) as run:
+        run.log_params({"alpha": 0.42, "nested": {"k": [1, 2]}})
+        for step in (1, 2):
+            run.log_metrics({"found": float(step)}, step=step)
+        run.log_artifact(tmp_path / "a.txt", "reports")
+    with pytest.raises(KeyboardInterrupt):
+        with tracking.standalone_run("design y", "exp", store_dir=store, background=background) as run:
+            raise KeyboardInterrupt
+    client = MlflowClient(tracking.tracking_uri(store))
+    exp = client.get_experiment_by_name("exp")
+    runs = {r.info.run_name: r for r in client.search_runs([exp.experiment_id])}
+    done, stopped = runs["design x"], runs["design y"]
+    assert done.info.status == "FINISHED" and stopped.info.status == "KILLED"
+    assert done.data.params == {"alpha": "0.42", "nested.k": "[1, 2]"} and done.data.tags["rule"] == "design"
+    assert [m.value for m in client.get_metric_history(done.info.run_id, "found")] == [1.0, 2.0]
+    assert [a.path for a in client.list_artifacts(done.info.run_id, "reports")] == ["reports/a.txt"]
+
+
+def test_importing_tracking_and_an_untracked_run_load_no_mlflow():
+    code = ("import sys; from pathlib import Path; from amorgs import tracking; run = tracking.JobRun(Path('x')); "
+            "run.log_params({'a': 1}); run.log_metrics({'b': 1.0}); run.close('FINISHED'); print('mlflow' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=ENV).stdout
+    assert out.strip() == "False"
+
+
 def test_error_status_tells_a_user_stop_from_a_failure(tmp_path):
     log = tmp_path / "snakemake.log"
     log.write_text("Error in rule generate:\n  jobid: 3\n")
