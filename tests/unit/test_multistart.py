@@ -15,7 +15,7 @@ import pytest
 
 from amorgs.problems import get_problem
 from amorgs.solvers.multistart import (
-    detach_worker, kill_worker, options_digest, run_multistart, solve_guesses, worker_timeout_s,
+    WorkerPool, detach_worker, kill_worker, options_digest, run_multistart, solve_guesses, worker_timeout_s,
 )
 from amorgs.solvers.options import BfgsOptions, IpoptOptions
 
@@ -30,6 +30,26 @@ def test_crash_hang_and_exception_cost_one_row_each():
     assert [r.x[0] for r, s in zip(records, statuses) if s == "ok"] == [1, 3, 8, 10]
     assert "ZeroDivisionError" in records[4].message
     assert info["replaced_workers"] == 2
+
+
+def test_a_pool_keeps_its_workers_across_calls_and_replaces_the_dead_ones():
+    """`amorgs design` solves in rounds with one pool: the same processes serve every call, each call's records
+    equal a one-off solve_guesses of the same guesses, a worker lost to a crash is back at the next call."""
+    problem = get_problem(CRASHY)
+    first, second = np.array([[1.2], [2.7], [8.1]]), np.array([[3.5], [6.4], [9.9]])
+    with WorkerPool(problem, 2, hard_timeout_s=3.0) as pool:
+        pids = {slot.proc.pid for slot in pool._slots}
+        records, info = pool.solve(0.5, first, progress=False)
+        assert [r.x[0] for r in records] == [1, 3, 8] and 1 <= len(info["build_s"]) <= 2  # a ready worker starts at once
+        assert {slot.proc.pid for slot in pool._slots} == pids and pool.cpu_seconds() > 0
+        records, info = pool.solve(0.5, second, progress=False)
+        assert [r.status for r in records] == ["crashed", "ok", "ok"] and info["replaced_workers"] == 1
+        assert [r.status for r in records] == [r.status for r in solve_guesses(problem, 0.5, second, 2, progress=False,
+                                                                               hard_timeout_s=3.0)[0]]
+        records, _ = pool.solve(0.5, first, progress=False)
+        assert [r.x[0] for r in records] == [1, 3, 8] and len(pool._slots) == 2
+        live = [slot.proc for slot in pool._slots]
+    assert not any(proc.is_alive() for proc in live)  # the end of the block kills them
 
 
 def test_bad_guess_is_rejected_before_any_work():

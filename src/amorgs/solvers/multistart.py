@@ -15,6 +15,10 @@ The pool takes a *problem object* (the :class:`~amorgs.problems.base.Problem` pr
 the caller resolves a name with :func:`amorgs.problems.get_problem`): it is plain data, pickled to each worker,
 which builds its local solver there.  So the solvers import nothing of the problem families.
 
+:class:`WorkerPool` keeps its workers across calls: a caller that solves in rounds (``amorgs design``) pays
+the start-up — spawn, imports, the solver's build — once, and can start the workers before it has its first
+guesses, so that they build while it loads its inputs.  :func:`solve_guesses` is one pool for one batch.
+
 Every worker leads its own process group, and the pool kills the whole group: a worker killed while gcc
 builds its solver (:mod:`amorgs.solvers.codegen`) takes the compiler with it instead of leaving it running
 under init.  On Linux a worker also dies with the process that started it (``PR_SET_PDEATHSIG``), so a
@@ -119,21 +123,25 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
+def _own_cpu_s() -> float:
+    """CPU seconds (user + system) of this process and of the children it waited for (a compiler)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
 def _worker(conn, problem, options: OptionsLike) -> None:
-    """Worker loop: build the problem's local solver, announce readiness, then answer (index, x0, alpha) tasks."""
+    """Worker loop: build the problem's local solver, announce readiness, then answer (index, x0, alpha) tasks
+    until the pool kills it; every message ends with the worker's CPU seconds so far (:func:`_own_cpu_s`)."""
     detach_worker()
     try:
         solver = problem.make_local_solver(options)
         digest = getattr(solver, "options_hash", None) or options_digest(problem.name, options)
-        conn.send(("ready", digest, float(getattr(solver, "build_s", 0.0))))
+        conn.send(("ready", digest, float(getattr(solver, "build_s", 0.0)), _own_cpu_s()))
     except Exception as exc:  # configuration errors surface in the parent with their message
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
         return
     while True:
-        task = conn.recv()
-        if task is None:
-            return
-        index, x0, alpha = task
+        index, x0, alpha = conn.recv()
         wall0, cpu0 = time.perf_counter(), time.process_time()
         try:
             record = solver.solve(x0, alpha)
@@ -143,7 +151,7 @@ def _worker(conn, problem, options: OptionsLike) -> None:
                 wall_s=time.perf_counter() - wall0, cpu_s=time.process_time() - cpu0,
                 message=f"{type(exc).__name__}: {exc}"[:200],
             )
-        conn.send(("done", index, record))
+        conn.send(("done", index, record, _own_cpu_s()))
 
 
 class _Slot:
@@ -158,64 +166,113 @@ class _Slot:
         self.ready = False
         self.task: int | None = None
         self.since = time.monotonic()
+        self.cpu_s = 0.0  # the worker's CPU seconds as of its latest message
 
     def kill(self) -> None:
         kill_worker(self.proc)
         self.conn.close()
 
 
-def solve_guesses(
-    problem,
-    alpha: float,
-    guesses: np.ndarray,
-    workers: int = 1,
-    options: OptionsLike = None,
-    hard_timeout_s: float | None = None,
-    progress: bool = True,
-    label: str = "",
-) -> tuple[list[SolveRecord], dict]:
-    """Solve every row of ``guesses`` at ``alpha`` with ``problem``'s local solver (a problem object, see the
-    module docstring); returns records in input order and run info.
-
-    ``options``: the solver's options (see :func:`resolve_options`); ``hard_timeout_s`` (default
-    :func:`worker_timeout_s`) kills a stuck worker.
-    """
-    options = resolve_options(problem, options)
-    guesses = np.asarray(guesses, float)
+def check_guesses(problem, guesses: np.ndarray) -> None:
+    """``ValueError`` naming the first guess (row of ``guesses``) that ``problem`` refuses."""
     for i, g in enumerate(guesses):
         try:
             problem.check_guess(g)
         except ValueError as exc:
             raise ValueError(f"guess #{i}: {exc}") from None
-    if workers < 1:
-        raise ValueError(f"workers must be ≥ 1, got {workers}")
-    if hard_timeout_s is None:
-        hard_timeout_s = worker_timeout_s(options)
-    n = len(guesses)
-    records: list[SolveRecord | None] = [None] * n
-    info = {"build_s": [], "options_hash": None, "replaced_workers": 0}
-    for key in _THREAD_ENV:
-        os.environ.setdefault(key, "1")
-    ctx = mp.get_context("spawn")
-    pending = list(range(n))[::-1]
-    slots = [_Slot(ctx, problem, options) for _ in range(min(workers, max(n, 1)))]
-    done = converged = 0
-    t_start = time.monotonic()
 
-    def dispatch(slot: _Slot) -> None:
-        if pending:
-            slot.task = pending.pop()
-            slot.since = time.monotonic()
-            slot.conn.send((slot.task, guesses[slot.task], alpha))
-        else:
-            slot.task = None
-            slot.conn.send(None)
 
-    def failed(index: int, status: str, elapsed: float) -> SolveRecord:
-        return SolveRecord(status=status, converged=False, solver_success=False, x=np.full(guesses.shape[1], np.nan),
-                           wall_s=elapsed, cpu_s=math.nan, message=f"worker {status}")
+class WorkerPool:
+    """``workers`` solver processes of one problem and one set of options, started at once and kept across
+    :meth:`solve` calls until :meth:`close` (or the end of a ``with`` block) kills them.
 
-    try:
+    ``problem``: a problem object (module docstring); ``options``: see :func:`resolve_options` (validated here,
+    in the parent); ``hard_timeout_s`` (default :func:`worker_timeout_s`) kills a stuck worker, whose guess
+    becomes one ``timeout`` row.  A worker that dies is replaced while guesses are pending, and the pool is
+    topped up to ``workers`` at the next :meth:`solve`.  Which worker solves a guess never changes its record.
+    """
+
+    def __init__(self, problem, workers: int = 1, options: OptionsLike = None, hard_timeout_s: float | None = None):
+        if workers < 1:
+            raise ValueError(f"workers must be ≥ 1, got {workers}")
+        self.problem = problem
+        self.options = resolve_options(problem, options)
+        self.workers = int(workers)
+        self.hard_timeout_s = worker_timeout_s(self.options) if hard_timeout_s is None else float(hard_timeout_s)
+        self.options_hash: str | None = None  # reported by the first worker that built its solver
+        for key in _THREAD_ENV:
+            os.environ.setdefault(key, "1")
+        self._ctx = mp.get_context("spawn")
+        self._slots: list[_Slot] = []
+        try:
+            self._top_up()
+        except BaseException:
+            self.close()
+            raise
+
+    def __enter__(self) -> WorkerPool:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _top_up(self) -> None:
+        """Drop the idle workers that died and start new ones until the pool holds ``workers`` processes."""
+        for slot in [s for s in self._slots if s.task is None and not s.proc.is_alive()]:
+            slot.kill()
+            self._slots.remove(slot)
+        while len(self._slots) < self.workers:
+            self._slots.append(_Slot(self._ctx, self.problem, self.options))
+
+    def close(self) -> None:
+        """Kill every worker (and whatever it started) and reap it; the pool cannot solve afterwards."""
+        slots, self._slots = self._slots, []
+        for slot in slots:
+            slot.kill()
+
+    def cpu_seconds(self) -> float:
+        """CPU seconds of the live workers so far (each as of its latest message: its solver build, its solves).
+        Workers already ended count in ``resource.getrusage(RUSAGE_CHILDREN)`` of this process instead."""
+        return float(sum(slot.cpu_s for slot in self._slots))
+
+    def solve(self, alpha: float, guesses: np.ndarray, progress: bool = True, label: str = "") -> tuple[list[SolveRecord], dict]:
+        """Solve every row of ``guesses`` at ``alpha``; returns the records in input order and run info
+        (``build_s`` of the workers that became ready during this call, ``options_hash``, ``replaced_workers``).
+        Any exception (a solver that cannot be built, Ctrl-C) closes the pool before it propagates."""
+        guesses = np.asarray(guesses, float)
+        check_guesses(self.problem, guesses)
+        try:
+            return self._solve(float(alpha), guesses, progress, label)
+        except BaseException:
+            self.close()
+            raise
+
+    def _solve(self, alpha: float, guesses: np.ndarray, progress: bool, label: str) -> tuple[list[SolveRecord], dict]:
+        problem, hard_timeout_s = self.problem, self.hard_timeout_s
+        self._top_up()
+        slots = self._slots
+        n = len(guesses)
+        records: list[SolveRecord | None] = [None] * n
+        info = {"build_s": [], "options_hash": self.options_hash, "replaced_workers": 0}
+        pending = list(range(n))[::-1]
+        done = converged = 0
+        t_start = time.monotonic()
+
+        def dispatch(slot: _Slot) -> None:
+            if pending:
+                slot.task = pending.pop()
+                slot.since = time.monotonic()
+                slot.conn.send((slot.task, guesses[slot.task], alpha))
+            else:
+                slot.task = None  # idle until the next call
+
+        def failed(index: int, status: str, elapsed: float) -> SolveRecord:
+            return SolveRecord(status=status, converged=False, solver_success=False, x=np.full(guesses.shape[1], np.nan),
+                               wall_s=elapsed, cpu_s=math.nan, message=f"worker {status}")
+
+        for slot in slots:  # workers ready since an earlier call start at once
+            if slot.ready:
+                dispatch(slot)
         while done < n:
             ready = wait([s.conn for s in slots] + [s.proc.sentinel for s in slots], timeout=1.0)
             for slot in list(slots):
@@ -230,11 +287,12 @@ def solve_guesses(
                         raise ValueError(f"{problem.name} solver could not be built: {msg[1]}")
                     if msg[0] == "ready":
                         slot.ready = True
-                        info["options_hash"] = msg[1]
+                        self.options_hash = info["options_hash"] = msg[1]
                         info["build_s"].append(msg[2])
+                        slot.cpu_s = msg[3]
                         dispatch(slot)
                         continue
-                    _, index, record = msg
+                    _, index, record, slot.cpu_s = msg
                     records[index] = record
                     done += 1
                     converged += bool(record.converged)
@@ -254,13 +312,39 @@ def solve_guesses(
                     slot.kill()
                     slots.remove(slot)
                     if pending:
-                        slots.append(_Slot(ctx, problem, options))
+                        slots.append(_Slot(self._ctx, problem, self.options))
                 elif not slot.ready and (dead or elapsed > limit):
                     raise RuntimeError(f"{problem.name} worker failed to start (exit code {slot.proc.exitcode})")
-    finally:
-        for slot in slots:
-            slot.kill()
-    return records, info  # type: ignore[return-value]
+                elif dead:  # ready and idle, and gone: replaced at the next call
+                    slot.kill()
+                    slots.remove(slot)
+        return records, info  # type: ignore[return-value]
+
+
+def solve_guesses(
+    problem,
+    alpha: float,
+    guesses: np.ndarray,
+    workers: int = 1,
+    options: OptionsLike = None,
+    hard_timeout_s: float | None = None,
+    progress: bool = True,
+    label: str = "",
+) -> tuple[list[SolveRecord], dict]:
+    """Solve every row of ``guesses`` at ``alpha`` with ``problem``'s local solver (a problem object, see the
+    module docstring) in a :class:`WorkerPool` of ``min(workers, len(guesses))`` processes, closed on return;
+    returns records in input order and run info.
+
+    ``options``: the solver's options (see :func:`resolve_options`); ``hard_timeout_s`` (default
+    :func:`worker_timeout_s`) kills a stuck worker.  Bad options or guesses raise before any process starts.
+    """
+    options = resolve_options(problem, options)
+    guesses = np.asarray(guesses, float)
+    check_guesses(problem, guesses)
+    if workers < 1:
+        raise ValueError(f"workers must be ≥ 1, got {workers}")
+    with WorkerPool(problem, min(workers, max(len(guesses), 1)), options, hard_timeout_s) as pool:
+        return pool.solve(alpha, guesses, progress, label)
 
 
 def run_multistart(
