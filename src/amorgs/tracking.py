@@ -315,6 +315,10 @@ class JobRun:
 
     def _call(self, method: str, *args, **kwargs) -> None:
         self._opened()
+        self._send(method, *args, **kwargs)
+
+    def _send(self, method: str, *args, **kwargs) -> None:
+        """Call the client's ``method`` on this run under the store's lock (no wait for the opening)."""
         if self._client is None:
             return
         try:
@@ -327,11 +331,14 @@ class JobRun:
     def log_params(self, params: dict) -> None:
         """Log parameters (nested dicts flattened with dots, lists as JSON)."""
         self._opened()
+        self._write_params(params)
+
+    def _write_params(self, params: dict) -> None:
         if self._client is None:
             return
         flat = _params(_flatten(params))
         for i in range(0, len(flat), 100):
-            self._call("log_batch", params=flat[i : i + 100])
+            self._send("log_batch", params=flat[i : i + 100])
 
     def log_metrics(self, metrics: dict[str, float], step: int = 0) -> None:
         """Queue numeric metrics at ``step``; they are written in batches, and at the latest on exit.
@@ -510,14 +517,16 @@ def standalone_run(
     uri: str | None = None,
     tags: dict | None = None,
     background: bool = False,
+    params: dict | None = None,
 ) -> Iterator[JobRun]:
     """One top-level MLflow run outside any workflow invocation (e.g. ``amorgs design``), with the same
     :class:`JobRun` API and end states as :func:`job_run`; tagged with the git state and package versions.
 
     It never reads or writes ``invocation.json``, so it can run beside a workflow on the same store.  The
     tracking URI is :func:`resolve_tracking_uri` of ``uri``.  Untracked (with a warning) if MLflow fails.
-    ``background``: MLflow is loaded and the run created in a thread, and the caller goes on at once; every
-    method of the run waits for it first (nothing is lost, the end states are the same).
+    ``params``: logged as the run is created (:meth:`JobRun.log_params`).  ``background``: MLflow is loaded and
+    the run created (with its params) in a thread, and the caller goes on at once; every method of the run
+    waits for it first — metrics are queued meanwhile — so nothing is lost and the end states are the same.
     """
     store = Path(store_dir)
     job = JobRun(store)
@@ -537,6 +546,8 @@ def standalone_run(
             job._client, job.run_id, job.experiment_id = client, run.info.run_id, exp_id
         except Exception as exc:  # noqa: BLE001 — tracking never fails the command
             _warn(f"opening the {name} run", exc)
+            return
+        job._write_params(params or {})
 
     if background:
         job._opening = threading.Thread(target=open_run, name="amorgs-mlflow-open", daemon=True)

@@ -146,8 +146,9 @@ def test_a_standalone_run_opened_in_the_background_logs_everything_and_ends_as_i
     reach the run, which ends FINISHED, or KILLED on Ctrl-C, exactly as a run opened in the foreground."""
     store = tmp_path / "mlflow"
     (tmp_path / "a.txt").write_text("artifact")
-    with tracking.standalone_run("design x", "exp", store_dir=store, tags={"rule": "design"}, background=background) as run:
-        run.log_params({"alpha": 0.42, "nested": {"k": [1, 2]}})
+    with tracking.standalone_run("design x", "exp", store_dir=store, tags={"rule": "design"}, background=background,
+                                 params={"alpha": 0.42}) as run:
+        run.log_params({"nested": {"k": [1, 2]}})
         for step in (1, 2):
             run.log_metrics({"found": float(step)}, step=step)
         run.log_artifact(tmp_path / "a.txt", "reports")

@@ -102,9 +102,10 @@ def read_manifest(library_dir: str | Path, problem: str) -> dict | None:
     return manifest
 
 
-def library_files(library_dir: str | Path, problem: str, alpha_label: str) -> list[Path]:
-    """The files of one (problem, α label) as listed in the manifest, in order; empty without a library."""
-    manifest = read_manifest(library_dir, problem)
+def library_files(library_dir: str | Path, problem: str, alpha_label: str, manifest: dict | None = None) -> list[Path]:
+    """The files of one (problem, α label) as listed in the manifest (read here unless given), in order; empty
+    without a library."""
+    manifest = manifest or read_manifest(library_dir, problem)
     if manifest is None:
         return []
     root = Path(library_dir) / problem
@@ -122,11 +123,12 @@ def _entry_of(path: Path, manifest: dict, root: Path) -> dict:
     raise InputError(f"{path}: not listed in {root / MANIFEST} (a library file must be added by `amorgs library-export`)")
 
 
-def read_library_file(path: str | Path, library_dir: str | Path, problem: str) -> pd.DataFrame:
-    """Read one library file after checking it against the manifest: listed, same SHA-256, same row count."""
+def read_library_file(path: str | Path, library_dir: str | Path, problem: str, manifest: dict | None = None) -> pd.DataFrame:
+    """Read one library file after checking it against the manifest (read here unless given: a caller reading
+    many files reads it once): listed, same SHA-256, same row count."""
     path = Path(path)
     root = Path(library_dir) / problem
-    manifest = read_manifest(library_dir, problem)
+    manifest = manifest or read_manifest(library_dir, problem)
     if manifest is None:
         raise InputError(f"{path}: the library {root} has no {MANIFEST}")
     entry = _entry_of(path, manifest, root)
@@ -208,10 +210,11 @@ def verify_library(library_dir: str | Path, problem: str) -> dict | None:
 def read_library(library_dir: str | Path, problem: str, alpha_label: str, max_rows: int | None = None) -> pd.DataFrame:
     """Every verified library row of one (problem, α label) in (shard, start) order, optionally only the first
     ``max_rows`` of them (a fixed slice); an empty table if there are none."""
-    files = library_files(library_dir, problem, alpha_label)
+    manifest = read_manifest(library_dir, problem)
+    files = library_files(library_dir, problem, alpha_label, manifest)
     if not files:
         return pd.DataFrame()
-    df = merge_shards(read_library_file(p, library_dir, problem) for p in files)
+    df = merge_shards(read_library_file(p, library_dir, problem, manifest) for p in files)
     return df.head(max_rows).reset_index(drop=True) if max_rows is not None else df
 
 

@@ -4,16 +4,13 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict
 from pathlib import Path
 
 from amorgs.alphas import alpha_label
 from amorgs.design.outputs import check_output_dir, default_output_dir, write_outputs
 from amorgs.design.search import DesignRequest, DesignResult, design, prepare
-from amorgs.design.tracking import DESIGN_EXPERIMENT, DESIGN_STORE_DIR
-
-
+from amorgs.design.tracking import DESIGN_STORE_DIR, design_run, log_result, log_round
 
 
 class ProgressLine:
@@ -61,52 +58,32 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
     """``amorgs design``: check every option (the output folder included) and prepare — every user error
     before the first solve —, search, write the outputs, mirror it to MLflow.
 
-    MLflow (unless ``track`` is false or the config's ``mlflow.enabled`` is false): one run per call
-    (:func:`amorgs.tracking.standalone_run`) in experiment :data:`DESIGN_EXPERIMENT` of the store
-    ``store_dir``, holding the request as parameters, the metrics (per round and final: found, starts, CPU s,
-    wall s …) and the artifacts (tables, plot, summary, trajectory CSV and OEM files); it ends FINISHED,
-    KILLED (Ctrl-C) or FAILED.  Returns the result and the written paths by kind.
+    MLflow (unless ``track`` is false or the config's ``mlflow.enabled`` is false): one run per call in
+    experiment ``amorgs-design`` of the store ``store_dir`` (:mod:`amorgs.design.tracking`), opened in
+    the background while the first round solves.  Returns the result and the written paths by kind.
     """
-    from contextlib import nullcontext
-
     request.check()
     out = Path(output_dir) if output_dir is not None else default_output_dir(request.alpha)
     check_output_dir(out)
-    prepared = prepare(request)
-    params = {**asdict(request), "output": str(out), **{k: v for k, v in prepared.info.items()}}
-    track = track and bool(prepared.cfg.mlflow.enabled)
-    from amorgs import tracking
+    with prepare(request) as prepared:
+        params = {**asdict(request), "output": str(out), **prepared.info}
+        track = track and bool(prepared.cfg.mlflow.enabled)
+        bar = ProgressLine(request) if progress else None
+        try:
+            with design_run(request.alpha, params, store_dir, prepared.cfg.mlflow.tracking_uri, track) as run:
 
-    bar = ProgressLine(request) if progress else None
-    if track:
-        context = tracking.standalone_run(f"design alpha={alpha_label(request.alpha)}", DESIGN_EXPERIMENT,
-                                          store_dir=store_dir, uri=prepared.cfg.mlflow.tracking_uri,
-                                          tags={"rule": "design", "wildcard.alpha": alpha_label(request.alpha)})
-    else:
-        context = nullcontext(tracking.JobRun(Path(store_dir)))
-    try:
-        with context as run:
-            run.log_params(params)
+                def on_round(state: dict) -> None:
+                    log_round(run, state)
+                    if bar is not None:
+                        bar(state)
 
-            def on_round(state: dict) -> None:
-                run.log_metrics({k: state[k] for k in ("found", "starts", "cpu_s", "wall_s")}, step=state["round"])
+                result = design(request, on_round, prepared)
                 if bar is not None:
-                    bar(state)
-
-            result = design(request, on_round, prepared)
+                    bar.close()
+                    bar = None
+                paths = write_outputs(result, out)
+                log_result(run, result.summary(), result.found >= request.n, paths)
+        finally:
             if bar is not None:
                 bar.close()
-                bar = None
-            paths = write_outputs(result, out)
-            summary = result.summary()
-            run.log_metrics({k: float(v) for k, v in summary.items()
-                             if isinstance(v, (int, float)) and not isinstance(v, bool) and k != "request"
-                             and math.isfinite(float(v))})
-            run.log_metrics({"complete": float(result.found >= request.n)})
-            for kind, files in paths.items():
-                for path in files:
-                    run.log_artifact(path, kind)
-    finally:
-        if bar is not None:
-            bar.close()
     return result, paths

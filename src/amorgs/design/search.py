@@ -19,6 +19,11 @@ at a different round.
 
 The chosen solutions: the η-diverse subset of every high-quality solution found (minimum-degree greedy,
 ties to higher m_f), the ``n`` with the highest m_f, ranked by m_f.
+
+Start-up (:func:`prepare`): every option and the presence of every input are checked first; then the solver
+workers start (:class:`~amorgs.solvers.multistart.WorkerPool`: spawn, imports, the compiled NLP loaded from
+the cache) while the library is read and the sampler built, and the same workers serve every round.  The
+model-free samplers import no torch.  Nothing of this changes a guess or a solve.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import math
 import resource
 import time
 from collections.abc import Callable
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -150,9 +156,15 @@ class DesignResult:
 
 
 def _cpu_seconds() -> float:
-    """CPU seconds of this process plus its terminated (reaped) children — the solver workers."""
+    """CPU seconds of this process plus its terminated (reaped) children — the solver workers once closed."""
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     return time.process_time() + children.ru_utime + children.ru_stime
+
+
+def _library_not_found(library_dir: str | Path) -> InputError:
+    from amorgs.data.library import MANIFEST
+
+    return InputError(f"{Path(library_dir) / PROBLEM / MANIFEST}: solution library not found (--library-dir {library_dir})")
 
 
 def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_kg: float) -> pd.DataFrame:
@@ -164,7 +176,7 @@ def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_k
 
     manifest = Path(library_dir) / PROBLEM / MANIFEST
     if verify_library(library_dir, PROBLEM) is None:
-        raise InputError(f"{manifest}: solution library not found (--library-dir {library_dir})")
+        raise _library_not_found(library_dir)
     frames = [read_library(library_dir, PROBLEM, alpha_label(a)) for a in train_alphas]
     frames = [f for f in frames if len(f)]
     if not frames:
@@ -175,12 +187,32 @@ def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_k
     return hq
 
 
+def check_inputs_present(request: DesignRequest) -> None:
+    """:class:`InputError` naming the file if an input of the requested sampler is missing: a checkpoint it
+    loads, or the library's manifest (a library with files but no manifest is named as such).  Only presence
+    (cheap, before any worker starts); :func:`make_sampler` verifies the contents."""
+    from amorgs.ablation.arms import get_arm
+    from amorgs.data.library import MANIFEST, verify_library
+    from amorgs.models.names import CHECKPOINTS
+
+    arm = get_arm(request.sampler)
+    for model in arm.models:
+        path = Path(request.models_dir) / CHECKPOINTS[model]
+        if not path.is_file():
+            raise InputError(f"{path}: model checkpoint not found (--models-dir {request.models_dir}; "
+                             f"sampler {request.sampler} needs {', '.join(arm.models)})")
+    if arm.high_quality and not (Path(request.library_dir) / PROBLEM / MANIFEST).is_file():
+        verify_library(request.library_dir, PROBLEM)  # files without a manifest: named
+        raise _library_not_found(request.library_dir)
+
+
 def make_sampler(request: DesignRequest, cfg, problem):
     """The requested sampler and a provenance dict; missing inputs raise :class:`InputError` naming the file."""
     from amorgs.ablation.arms import build_sampler, get_arm
     from amorgs.models.baselines import nearest_training_alpha
     from amorgs.models.names import CHECKPOINTS
 
+    check_inputs_present(request)
     arm = get_arm(request.sampler)
     section = cfg.problems.cr3bp
     train = tuple(section.alphas.train_values())
@@ -188,11 +220,6 @@ def make_sampler(request: DesignRequest, cfg, problem):
     models_dir = None
     if arm.models:
         models_dir = Path(request.models_dir)
-        for model in arm.models:
-            path = models_dir / CHECKPOINTS[model]
-            if not path.is_file():
-                raise InputError(f"{path}: model checkpoint not found (--models-dir {request.models_dir}; "
-                                 f"sampler {request.sampler} needs {', '.join(arm.models)})")
         from amorgs.models.shipped import verify_models
 
         shipped = verify_models(models_dir, tuple(CHECKPOINTS[m] for m in arm.models))
@@ -240,24 +267,44 @@ def check_beta(beta_kg: float, problem) -> None:
                           f"{bound:.1f} kg (no fuel spent); no solution could count")
 
 
+def pool_size(request: DesignRequest) -> int:
+    """Solver processes of a search: ``workers``, but never more than the starts of one round."""
+    return max(1, min(request.workers, request.round_size, request.max_starts))
+
 
 @dataclass
 class Prepared:
-    """Everything :func:`design` needs before the first solve: the config, the solver options, the problem and
-    the sampler with its provenance (``info``)."""
+    """Everything :func:`design` needs before the first solve: the config, the solver options, the problem, the
+    sampler with its provenance (``info``) and the solver workers, already starting (``pool``, or None: the
+    search starts them).  A context manager: leaving it (or :meth:`close`) ends the workers."""
 
     cfg: object
     solver_options: IpoptOptions
     problem: object
     sampler: object
     info: dict
+    pool: object = None  # amorgs.solvers.multistart.WorkerPool
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.close()
+
+    def __enter__(self) -> Prepared:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
-def prepare(request: DesignRequest) -> Prepared:
+def prepare(request: DesignRequest, start_workers: bool = True) -> Prepared:
     """Check the request and load its inputs (config, library or models); bad options raise
-    :class:`ConfigError`, missing or unreadable files :class:`InputError` — before any solve."""
+    :class:`ConfigError`, missing or unreadable files :class:`InputError` — before any solve.
+
+    ``start_workers``: once every option is checked and every input found, start the solver workers, which
+    build their solvers while the library is read and the sampler built (they end if a later step fails)."""
     from amorgs.config import load_config
     from amorgs.problems import get_problem
+    from amorgs.solvers.multistart import WorkerPool
 
     request.check()
     if not Path(request.config).is_file():
@@ -265,59 +312,72 @@ def prepare(request: DesignRequest) -> Prepared:
     cfg = load_config(request.config)
     problem = get_problem(PROBLEM)
     check_beta(request.beta_kg, problem)
-    sampler, info = make_sampler(request, cfg, problem)
+    check_inputs_present(request)
     solver_options = cfg.problems.cr3bp.solver
+    pool = WorkerPool(problem, pool_size(request), solver_options) if start_workers else None
+    try:
+        sampler, info = make_sampler(request, cfg, problem)
+    except BaseException:
+        if pool is not None:
+            pool.close()
+        raise
     info["solver_options"] = solver_options.to_dict()
-    return Prepared(cfg, solver_options, problem, sampler, info)
+    return Prepared(cfg, solver_options, problem, sampler, info, pool)
 
 
 def design(request: DesignRequest, progress: Callable[[dict], None] | None = None,
            prepared: Prepared | None = None) -> DesignResult:
     """Run the search (module docstring); ``progress`` is called after every round with the running counts
     (``found``, ``n``, ``starts``, ``max_starts``, ``cpu_s``, ``max_cpu_s``, ``wall_s``, ``round``).
-    ``prepared``: the result of :func:`prepare` for this request (made here if not given)."""
+    ``prepared``: the result of :func:`prepare` for this request (made here if not given); its workers serve
+    every round and end with the search."""
     from amorgs.data.filter import high_quality
     from amorgs.data.tables import validate_solutions
-    from amorgs.solvers.multistart import records_table, solve_guesses
+    from amorgs.solvers.multistart import WorkerPool, records_table
 
     wall0, cpu0 = time.perf_counter(), _cpu_seconds()
-    prepared = prepared or prepare(request)
-    solver_options, problem, sampler = prepared.solver_options, prepared.problem, prepared.sampler
-    info = dict(prepared.info)
-    rng = np.random.default_rng(request.seed)
-
     tables: list[pd.DataFrame] = []
     solves = pd.DataFrame()
     found, starts, rounds, selected = 0, 0, 0, pd.DataFrame()
     stop_reason = ""
-    while True:
-        cpu = _cpu_seconds() - cpu0
-        if found >= request.n:
-            stop_reason = "found"
-        elif starts >= request.max_starts:
-            stop_reason = "max_starts"
-        elif cpu >= request.max_cpu_s:
-            stop_reason = "max_cpu_s"
-        if stop_reason:
-            break
-        size = min(request.round_size, request.max_starts - starts)
-        guesses = sampler.sample(request.alpha, size, rng)
-        records, run_info = solve_guesses(problem, request.alpha, guesses, request.workers, solver_options,
-                                          progress=False)
-        table = records_table(PROBLEM, request.alpha, request.seed, guesses, records, problem.variable_names,
-                              run_info["options_hash"])
-        table["start"] += starts
-        table.insert(int(table.columns.get_loc("seed")) + 1, "shard", rounds)
-        tables.append(table)
-        starts += size
-        rounds += 1
-        solves = pd.concat(tables, ignore_index=True)
-        hq = high_quality(solves, min_final_mass_kg=request.beta_kg)
-        found, selected = select_diverse(hq, request.eta, request.n)
-        if progress is not None:
-            progress({"round": rounds, "found": found, "n": request.n, "starts": starts,
-                      "max_starts": request.max_starts, "cpu_s": _cpu_seconds() - cpu0,
-                      "max_cpu_s": request.max_cpu_s, "wall_s": time.perf_counter() - wall0})
+    with ExitStack() as stack:
+        if prepared is None:
+            prepared = stack.enter_context(prepare(request))
+        stack.callback(prepared.close)
+        solver_options, problem, sampler = prepared.solver_options, prepared.problem, prepared.sampler
+        pool = prepared.pool or stack.enter_context(WorkerPool(problem, pool_size(request), solver_options))
+        info = dict(prepared.info)
+        rng = np.random.default_rng(request.seed)
+
+        def cpu_s() -> float:  # this process, the workers that ended, and the live ones so far
+            return _cpu_seconds() - cpu0 + pool.cpu_seconds()
+
+        while True:
+            if found >= request.n:
+                stop_reason = "found"
+            elif starts >= request.max_starts:
+                stop_reason = "max_starts"
+            elif rounds and cpu_s() >= request.max_cpu_s:  # checked between rounds: the first always runs
+                stop_reason = "max_cpu_s"
+            if stop_reason:
+                break
+            size = min(request.round_size, request.max_starts - starts)
+            guesses = sampler.sample(request.alpha, size, rng)
+            records, run_info = pool.solve(request.alpha, guesses, progress=False)
+            table = records_table(PROBLEM, request.alpha, request.seed, guesses, records, problem.variable_names,
+                                  run_info["options_hash"])
+            table["start"] += starts
+            table.insert(int(table.columns.get_loc("seed")) + 1, "shard", rounds)
+            tables.append(table)
+            starts += size
+            rounds += 1
+            solves = pd.concat(tables, ignore_index=True)
+            hq = high_quality(solves, min_final_mass_kg=request.beta_kg)
+            found, selected = select_diverse(hq, request.eta, request.n)
+            if progress is not None:
+                progress({"round": rounds, "found": found, "n": request.n, "starts": starts,
+                          "max_starts": request.max_starts, "cpu_s": cpu_s(),
+                          "max_cpu_s": request.max_cpu_s, "wall_s": time.perf_counter() - wall0})
 
     if len(solves):
         validate_solutions(solves, problem.variable_names, where="design solves")
