@@ -231,3 +231,33 @@ def test_an_unlisted_library_file_stops_design_naming_it(tmp_path):
     stray.write_bytes(b"not listed")
     with pytest.raises(InputError, match=rf"{stray}: not listed in"):
         library_high_quality(lib, (0.4,), 415.0)
+
+
+def test_the_library_table_from_the_cache_is_the_table_read_afresh(tmp_path, monkeypatch):
+    """The high-quality library table is kept in the cache by the manifest's digest: the cached table equals the
+    fresh one exactly, another β is another entry, and a damaged entry is read afresh (and rewritten)."""
+    from amorgs.design import library_high_quality
+
+    monkeypatch.setenv("AMORGS_CACHE_DIR", str(tmp_path / "cache"))
+    train = (0.1, 0.4, 0.5)
+    fresh = library_high_quality(REPO / "data" / "library", train, 415.0, cache=False)
+    assert not (tmp_path / "cache").exists()
+    first = library_high_quality(REPO / "data" / "library", train, 415.0)
+    (entry,) = (tmp_path / "cache").glob("design-library-hq-*.parquet")
+    cached = library_high_quality(REPO / "data" / "library", train, 415.0)
+    pd.testing.assert_frame_equal(first, fresh)
+    pd.testing.assert_frame_equal(cached, fresh)
+    library_high_quality(REPO / "data" / "library", train, 430.0)
+    assert len(list((tmp_path / "cache").glob("design-library-hq-*.parquet"))) == 2
+    entry.write_bytes(b"damaged")
+    pd.testing.assert_frame_equal(library_high_quality(REPO / "data" / "library", train, 415.0), fresh)
+    pd.testing.assert_frame_equal(pd.read_parquet(entry), fresh)
+
+
+def test_preparing_a_design_with_the_reuse_sampler_loads_neither_torch_nor_mlflow():
+    """Start-up (issue 24 §5): the default sampler is model-free and MLflow opens only once solving has begun."""
+    code = ("import sys; from amorgs.design import DesignRequest, prepare; "
+            "p = prepare(DesignRequest(alpha=0.42, n=1), start_workers=False); "
+            "print(type(p.sampler).__name__, 'torch' in sys.modules, 'mlflow' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["NearestAlphaSampler", "False", "False"]

@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+from contextlib import ExitStack
 from dataclasses import asdict
 from pathlib import Path
 
@@ -15,7 +16,7 @@ from amorgs.design.tracking import DESIGN_STORE_DIR, design_run, log_result, log
 
 class ProgressLine:
     """Progress on stderr after every round: tqdm if it is installed, else one updating line (a new line per
-    round when stderr is not a terminal)."""
+    round when stderr is not a terminal).  A context manager; :meth:`close` ends the line, once."""
 
     def __init__(self, request: DesignRequest, stream=None):
         import importlib.util
@@ -30,6 +31,7 @@ class ProgressLine:
             self._bar = tqdm(total=request.n, desc=f"design α={alpha_label(request.alpha)}", unit="sol",
                              file=self.stream)
         self._tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self._closed = False
 
     def __call__(self, state: dict) -> None:
         text = (f"starts {state['starts']}/{state['max_starts']} | CPU {state['cpu_s']:.0f}/{state['max_cpu_s']:.0f} s"
@@ -46,11 +48,20 @@ class ProgressLine:
         self.stream.flush()
 
     def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
         if self._bar is not None:
             self._bar.close()
         elif self._tty:
             self.stream.write("\n")
             self.stream.flush()
+
+    def __enter__(self) -> ProgressLine:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def run_design(request: DesignRequest, output_dir: str | Path | None = None, track: bool = True,
@@ -59,31 +70,31 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
     before the first solve —, search, write the outputs, mirror it to MLflow.
 
     MLflow (unless ``track`` is false or the config's ``mlflow.enabled`` is false): one run per call in
-    experiment ``amorgs-design`` of the store ``store_dir`` (:mod:`amorgs.design.tracking`), opened in
-    the background while the first round solves.  Returns the result and the written paths by kind.
+    experiment ``amorgs-design`` of the store ``store_dir`` (:mod:`amorgs.design.tracking`), opened in the
+    background once the first guess is with a solver worker, so that it delays no solve.  Returns the
+    result and the written paths by kind.
     """
     request.check()
     out = Path(output_dir) if output_dir is not None else default_output_dir(request.alpha)
     check_output_dir(out)
-    with prepare(request) as prepared:
+    with prepare(request) as prepared, ExitStack() as stack:
         params = {**asdict(request), "output": str(out), **prepared.info}
         track = track and bool(prepared.cfg.mlflow.enabled)
-        bar = ProgressLine(request) if progress else None
-        try:
-            with design_run(request.alpha, params, store_dir, prepared.cfg.mlflow.tracking_uri, track) as run:
+        bar = stack.enter_context(ProgressLine(request)) if progress else None
+        runs = []  # the MLflow run, once opened; it ends (FINISHED, KILLED, FAILED) with this block
 
-                def on_round(state: dict) -> None:
-                    log_round(run, state)
-                    if bar is not None:
-                        bar(state)
+        def open_run() -> None:
+            runs.append(stack.enter_context(design_run(request.alpha, params, store_dir,
+                                                       prepared.cfg.mlflow.tracking_uri, track)))
 
-                result = design(request, on_round, prepared)
-                if bar is not None:
-                    bar.close()
-                    bar = None
-                paths = write_outputs(result, out)
-                log_result(run, result.summary(), result.found >= request.n, paths)
-        finally:
+        def on_round(state: dict) -> None:
+            log_round(runs[0], state)
             if bar is not None:
-                bar.close()
+                bar(state)
+
+        result = design(request, on_round, prepared, started=open_run)
+        if bar is not None:
+            bar.close()
+        paths = write_outputs(result, out)
+        log_result(runs[0], result.summary(), result.found >= request.n, paths)
     return result, paths

@@ -152,6 +152,10 @@ class IpoptSolver:
         self.last_trace: list[float] = []  # max|g| per IPOPT iteration of the latest solve (stall abort on)
         self._ipopt = ipopt_settings(options)
 
+    def build(self, alpha: float) -> None:
+        """Build (or load from the compile cache) the NLP that solves at ``alpha`` now, not at the first solve."""
+        self._nlp(alpha)
+
     def transcription(self, alpha: float) -> Transcription:
         """The transcription (integration grid resolved for α) that solves at this α."""
         return self._nlp(alpha)[0]

@@ -37,7 +37,7 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from multiprocessing.connection import wait
 
@@ -129,12 +129,15 @@ def _own_cpu_s() -> float:
     return t.user + t.system + t.children_user + t.children_system
 
 
-def _worker(conn, problem, options: OptionsLike) -> None:
-    """Worker loop: build the problem's local solver, announce readiness, then answer (index, x0, alpha) tasks
-    until the pool kills it; every message ends with the worker's CPU seconds so far (:func:`_own_cpu_s`)."""
+def _worker(conn, problem, options: OptionsLike, alpha: float | None = None) -> None:
+    """Worker loop: build the problem's local solver (for ``alpha`` too, if given and the solver has a
+    ``build(alpha)``), announce readiness, then answer (index, x0, alpha) tasks until the pool kills it;
+    every message ends with the worker's CPU seconds so far (:func:`_own_cpu_s`)."""
     detach_worker()
     try:
         solver = problem.make_local_solver(options)
+        if alpha is not None and hasattr(solver, "build"):
+            solver.build(alpha)
         digest = getattr(solver, "options_hash", None) or options_digest(problem.name, options)
         conn.send(("ready", digest, float(getattr(solver, "build_s", 0.0)), _own_cpu_s()))
     except Exception as exc:  # configuration errors surface in the parent with their message
@@ -157,9 +160,9 @@ def _worker(conn, problem, options: OptionsLike) -> None:
 class _Slot:
     """One worker process and the task it is working on."""
 
-    def __init__(self, ctx, problem, options: OptionsLike):
+    def __init__(self, ctx, problem, options: OptionsLike, alpha: float | None = None):
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker, args=(child, problem, options), daemon=True)
+        self.proc = ctx.Process(target=_worker, args=(child, problem, options, alpha), daemon=True)
         with _sigint_ignored():  # Ctrl-C is the caller's to handle: a starting worker never sees it
             self.proc.start()
         child.close()
@@ -188,11 +191,13 @@ class WorkerPool:
 
     ``problem``: a problem object (module docstring); ``options``: see :func:`resolve_options` (validated here,
     in the parent); ``hard_timeout_s`` (default :func:`worker_timeout_s`) kills a stuck worker, whose guess
-    becomes one ``timeout`` row.  A worker that dies is replaced while guesses are pending, and the pool is
+    becomes one ``timeout`` row; ``alpha``: the α the workers build their solver for as they start (a solver
+    with ``build(alpha)``, e.g. the NLP of that α's integration grid), so that the first solve starts at once.  A worker that dies is replaced while guesses are pending, and the pool is
     topped up to ``workers`` at the next :meth:`solve`.  Which worker solves a guess never changes its record.
     """
 
-    def __init__(self, problem, workers: int = 1, options: OptionsLike = None, hard_timeout_s: float | None = None):
+    def __init__(self, problem, workers: int = 1, options: OptionsLike = None, hard_timeout_s: float | None = None,
+                 alpha: float | None = None):
         if workers < 1:
             raise ValueError(f"workers must be ≥ 1, got {workers}")
         self.problem = problem
@@ -200,6 +205,7 @@ class WorkerPool:
         self.workers = int(workers)
         self.hard_timeout_s = worker_timeout_s(self.options) if hard_timeout_s is None else float(hard_timeout_s)
         self.options_hash: str | None = None  # reported by the first worker that built its solver
+        self.alpha = alpha
         for key in _THREAD_ENV:
             os.environ.setdefault(key, "1")
         self._ctx = mp.get_context("spawn")
@@ -222,7 +228,7 @@ class WorkerPool:
             slot.kill()
             self._slots.remove(slot)
         while len(self._slots) < self.workers:
-            self._slots.append(_Slot(self._ctx, self.problem, self.options))
+            self._slots.append(_Slot(self._ctx, self.problem, self.options, self.alpha))
 
     def close(self) -> None:
         """Kill every worker (and whatever it started) and reap it; the pool cannot solve afterwards."""
@@ -235,19 +241,23 @@ class WorkerPool:
         Workers already ended count in ``resource.getrusage(RUSAGE_CHILDREN)`` of this process instead."""
         return float(sum(slot.cpu_s for slot in self._slots))
 
-    def solve(self, alpha: float, guesses: np.ndarray, progress: bool = True, label: str = "") -> tuple[list[SolveRecord], dict]:
+    def solve(self, alpha: float, guesses: np.ndarray, progress: bool = True, label: str = "",
+              started: Callable[[], None] | None = None) -> tuple[list[SolveRecord], dict]:
         """Solve every row of ``guesses`` at ``alpha``; returns the records in input order and run info
         (``build_s`` of the workers that became ready during this call, ``options_hash``, ``replaced_workers``).
-        Any exception (a solver that cannot be built, Ctrl-C) closes the pool before it propagates."""
+        ``started`` is called once, as soon as the first guess is with a worker (work the caller defers until
+        the solving has begun).  Any exception (a solver that cannot be built, Ctrl-C) closes the pool before
+        it propagates."""
         guesses = np.asarray(guesses, float)
         check_guesses(self.problem, guesses)
         try:
-            return self._solve(float(alpha), guesses, progress, label)
+            return self._solve(float(alpha), guesses, progress, label, started)
         except BaseException:
             self.close()
             raise
 
-    def _solve(self, alpha: float, guesses: np.ndarray, progress: bool, label: str) -> tuple[list[SolveRecord], dict]:
+    def _solve(self, alpha: float, guesses: np.ndarray, progress: bool, label: str,
+               started: Callable[[], None] | None) -> tuple[list[SolveRecord], dict]:
         problem, hard_timeout_s = self.problem, self.hard_timeout_s
         self._top_up()
         slots = self._slots
@@ -259,10 +269,14 @@ class WorkerPool:
         t_start = time.monotonic()
 
         def dispatch(slot: _Slot) -> None:
+            nonlocal started
             if pending:
                 slot.task = pending.pop()
                 slot.since = time.monotonic()
                 slot.conn.send((slot.task, guesses[slot.task], alpha))
+                if started is not None:
+                    started, call = None, started
+                    call()
             else:
                 slot.task = None  # idle until the next call
 
@@ -312,7 +326,7 @@ class WorkerPool:
                     slot.kill()
                     slots.remove(slot)
                     if pending:
-                        slots.append(_Slot(self._ctx, problem, self.options))
+                        slots.append(_Slot(self._ctx, problem, self.options, self.alpha))
                 elif not slot.ready and (dead or elapsed > limit):
                     raise RuntimeError(f"{problem.name} worker failed to start (exit code {slot.proc.exitcode})")
                 elif dead:  # ready and idle, and gone: replaced at the next call
