@@ -2,11 +2,14 @@
 
 The package in three parts and the command that joins them:
 
-    search.py     the request, the checks made before the first solve, the sampler and the search in rounds
-                  (:func:`design`, :class:`DesignRequest`, :class:`DesignResult`)
+    search.py     the request, the checks made before the first solve, the sampler, the solver workers and
+                  the search in rounds (:func:`design`, :class:`DesignRequest`, :class:`DesignResult`)
     outputs.py    the files: tables, trajectories (CSV, CCSDS OEM), plot, summary, README (:func:`write_outputs`)
-    tracking.py   the MLflow store and experiment of the design runs (through :mod:`amorgs.tracking`)
+    tracking.py   the MLflow run of a design, opened in the background once solving has begun (through
+                  :mod:`amorgs.tracking`, the only module that talks to MLflow)
     command.py    ``amorgs design``: check, prepare, search, write, track (:func:`run_design`)
+
+Importing the package is light: torch, MLflow, matplotlib and the OEM writer load only when a step needs them.
 """
 
 from amorgs.design.command import ProgressLine, run_design

@@ -35,6 +35,7 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -44,6 +45,9 @@ from amorgs.alphas import alpha_label
 from amorgs.config import ConfigError
 from amorgs.errors import InputError
 from amorgs.solvers.options import IpoptOptions
+
+if TYPE_CHECKING:
+    from amorgs.solvers.multistart import WorkerPool
 
 PROBLEM = "cr3bp"
 #: Defaults of ``amorgs design`` (see :class:`DesignRequest`).
@@ -329,7 +333,7 @@ class Prepared:
     problem: object
     sampler: object
     info: dict
-    pool: object = None  # amorgs.solvers.multistart.WorkerPool
+    pool: WorkerPool | None = None
 
     def close(self) -> None:
         if self.pool is not None:
