@@ -109,7 +109,7 @@ def cmd_design(args: argparse.Namespace) -> None:
     request = DesignRequest(
         alpha=args.alpha, n=args.n, sampler=args.sampler, beta_kg=args.beta, eta=args.eta, seed=args.seed,
         workers=args.workers, round_size=args.round_size, max_starts=args.max_starts, max_cpu_s=args.max_cpu_s,
-        library_dir=args.library_dir, models_dir=args.models_dir, config=args.config,
+        library_dir=args.library_dir, models_dir=args.models_dir, config=args.config, frontier=args.frontier,
     )
     result, paths = run_design(request, args.output, track=not args.no_mlflow, store_dir=args.mlflow_dir,
                                progress=not args.quiet)
@@ -299,10 +299,14 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--alpha", required=True, type=float, help="maximum thrust α in N, within [0.1, 1.0]")
     p.add_argument("-n", "--n", dest="n", required=True, type=int, help="number of solutions wanted (≥ 1)")
-    p.add_argument("--sampler", default=REUSE_ARM,
-                   help=f"warm-start sampler (default {REUSE_ARM}: library solutions of the nearest training α); "
-                        "also " + ", ".join(a.name for a in ARMS if not a.learned and a.name != REUSE_ARM)
+    p.add_argument("--sampler", default="auto",
+                   help="warm-start sampler (default auto: the arm the committed frontier, --frontier, measured best "
+                        f"at this α's distance from the library's α — {REUSE_ARM}, the library solutions of the "
+                        "nearest α, unless a learned arm beat it significantly there; the choice and its reason "
+                        "are printed); or " + ", ".join(a.name for a in ARMS if not a.learned)
                         + ", and the learned " + ", ".join(a.name for a in ARMS if a.learned) + " (need --models-dir)")
+    p.add_argument("--frontier", default="reference/frontier/frontier.csv",
+                   help="the frontier table --sampler auto follows (amorgs frontier; default the committed one)")
     p.add_argument("--beta", type=float, default=415.0, help="β: minimum final fuel mass m_f in kg (default 415)")
     p.add_argument("--eta", type=float, default=0.02,
                    help="η of Eq. 12, dimensionless: solutions must differ by more than η in (τ_s/40, τ_i/15, τ_f/15) "

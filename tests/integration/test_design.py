@@ -261,3 +261,42 @@ def test_preparing_a_design_with_the_reuse_sampler_loads_neither_torch_nor_mlflo
             "print(type(p.sampler).__name__, 'torch' in sys.modules, 'mlflow' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True).stdout
     assert out.split() == ["NearestAlphaSampler", "False", "False"]
+
+
+def test_auto_follows_the_frontier_and_says_why(tmp_path):
+    """--sampler auto (the default) picks the arm the frontier table measured significantly better than reuse at
+    the requested α's relative gap to the config's training α, reuse otherwise; the shipped models say when the
+    library they were trained on is not today's."""
+    import pandas as pd
+
+    from amorgs.config import load_config
+    from amorgs.design.search import DesignRequest, resolve_sampler, stale_models_note
+    from amorgs.errors import InputError
+
+    cfg = load_config("config/default.yaml")
+    train = cfg.problems.cr3bp.alphas.train_values()
+    gap_alpha = 0.5 * (train[0] + train[1])  # halfway between the two smallest training α
+    rel = (gap_alpha - train[0]) / gap_alpha
+    table = pd.DataFrame([{"design": "sparse-3", "run": "sparse-3", "alpha": 0.3, "gap_relative": rel,
+                           "sampler": "amorgs", "target": "high_quality", "unit": "iterations", "ratio_to_reuse": 0.5,
+                           "ratio_to_reuse_ci95_low": 0.3, "ratio_to_reuse_ci95_high": 0.8}])
+    frontier = tmp_path / "frontier.csv"
+    table.to_csv(frontier, index=False)
+    chosen, why = resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=str(frontier)), cfg)
+    assert chosen.sampler == "amorgs" and "--sampler auto" in why and "beat reuse significantly" in why
+    chosen, why = resolve_sampler(DesignRequest(alpha=train[0], n=1, frontier=str(frontier)), cfg)
+    assert chosen.sampler == "nearest_alpha" and "library α" in why
+    chosen, why = resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=str(tmp_path / "none.csv")), cfg)
+    assert chosen.sampler == "nearest_alpha" and "no frontier table" in why
+    kept, why = resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, sampler="uniform"), cfg)
+    assert kept.sampler == "uniform" and why == "sampler uniform (--sampler)"
+    frontier.write_text("not,a\nfrontier,table\n")
+    with pytest.raises(InputError, match="frontier.csv: not a frontier table"):
+        resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=str(frontier)), cfg)
+    # the shipped models were exported from a run on an older library than the committed one
+    from amorgs.models.shipped import verify_models
+
+    shipped = verify_models("data/models/cr3bp")
+    note = stale_models_note(shipped, "data/library", "data/models/cr3bp")
+    assert f"({shipped['library_rows']} solves)" in note and "retrain" in note
+    assert stale_models_note({**shipped, "library_manifest_sha256": None}, "data/library", "data/models/cr3bp") == ""

@@ -92,3 +92,38 @@ def test_a_reference_without_starts_cannot_be_certified_and_says_so():
 
     with pytest.raises(InputError, match=r"reference/study/starts\.parquet: this reference has no per-start table"):
         certify_reference(ROOT / "reference" / "study", sample=1)
+
+
+FRONTIER = ROOT / "reference" / "frontier"
+#: The committed frontier folds (reference-export --starts-only of each fold's run).
+FOLDS = sorted(p.name for p in FRONTIER.iterdir() if (p / "starts.parquet").is_file()) if FRONTIER.is_dir() else []
+
+
+def _without_library_path(mapping: dict) -> dict:
+    mapping["problems"]["cr3bp"]["library"].pop("path")  # absolute, where the fold ran
+    return mapping
+
+
+def test_the_committed_frontier_is_recomputed_from_its_folds_starts_and_the_shipped_base_config(tmp_path, monkeypatch):
+    """Each committed fold is the fold `amorgs frontier-plan` writes today from config/frontier.yaml (but for where
+    the library lay), its files match its manifest, and the committed frontier table is exactly what the
+    aggregation computes from the folds' starts."""
+    import pandas as pd
+
+    from amorgs.ablation.frontier import frontier_table
+    from amorgs.config import effective_mapping, read_yaml
+    from amorgs.frontier import plan, read_run
+
+    assert FOLDS, "reference/frontier holds no fold"
+    monkeypatch.chdir(ROOT)
+    sparse = tuple(int(name.removeprefix("sparse-")) for name in FOLDS if name.startswith("sparse-"))
+    loo = tuple(float(name.removeprefix("loo-")) for name in FOLDS if name.startswith("loo-"))
+    planned = {fold.name: run for fold, run in plan("config/frontier.yaml", tmp_path, loo=loo, sparse=sparse)}
+    assert sorted(planned) == FOLDS
+    for name, run in planned.items():
+        shipped = _without_library_path(effective_mapping(read_yaml(run / "config.yaml")))
+        ran = _without_library_path(effective_mapping(read_yaml(FRONTIER / name / "config.yaml")))
+        assert shipped == ran, f"config/frontier.yaml no longer plans the fold reference/frontier/{name} ran"
+    table = frontier_table([read_run(FRONTIER / name) for name in FOLDS])  # verifies each fold's manifest
+    committed = pd.read_csv(FRONTIER / "frontier.csv")
+    pd.testing.assert_frame_equal(table, committed, check_dtype=False, rtol=1e-12)

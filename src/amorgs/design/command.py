@@ -78,6 +78,12 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
     out = Path(output_dir) if output_dir is not None else default_output_dir(request.alpha)
     check_output_dir(out)
     with prepare(request) as prepared, ExitStack() as stack:
+        if progress:  # which sampler, and why (auto: the frontier's evidence); stale shipped models
+            import sys
+
+            for line in (prepared.info["sampler_choice"], prepared.info.get("models_note")):
+                if line:
+                    print(f"amorgs design: {line}", file=sys.stderr, flush=True)
         params = {**asdict(request), "output": str(out), **prepared.info}
         track = track and bool(prepared.cfg.mlflow.enabled)
         bar = stack.enter_context(ProgressLine(request)) if progress else None

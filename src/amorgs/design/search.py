@@ -1,7 +1,8 @@
 """The search of ``amorgs design``: warm starts at one α solved in rounds until N good, η-diverse solutions.
 
-:func:`design` draws warm starts from a sampler (default ``nearest_alpha``: the high-quality *library*
-solutions of the nearest training α, reused unchanged — the arm that measured best in the ablation), solves
+:func:`design` draws warm starts from a sampler (default ``auto``: the arm the committed frontier measured best
+at the requested α's distance from the library's α, :func:`resolve_sampler` — reuse of the nearest library α's
+high-quality solutions unless a learned arm beat it significantly there), solves
 them with the workflow's solver and options (``problems.cr3bp.solver`` of the config) through the multistart
 pool, in **rounds** of ``round_size`` starts, until ``n`` solutions are
 
@@ -51,7 +52,11 @@ if TYPE_CHECKING:
 
 PROBLEM = "cr3bp"
 #: Defaults of ``amorgs design`` (see :class:`DesignRequest`).
-DEFAULT_SAMPLER = REUSE_ARM  # library solutions of the nearest training α
+#: ``--sampler auto``: the arm the frontier recommends (:func:`resolve_sampler`).
+AUTO_SAMPLER = "auto"
+DEFAULT_SAMPLER = AUTO_SAMPLER
+#: The committed frontier table (``amorgs frontier``) that ``auto`` follows.
+DEFAULT_FRONTIER = "reference/frontier/frontier.csv"
 DEFAULT_LIBRARY_DIR = "data/library"
 DEFAULT_MODELS_DIR = "data/models/cr3bp"
 DEFAULT_CONFIG = "config/default.yaml"
@@ -86,20 +91,21 @@ class DesignRequest:
     library_dir: str = DEFAULT_LIBRARY_DIR
     models_dir: str = DEFAULT_MODELS_DIR
     config: str = DEFAULT_CONFIG
+    frontier: str = DEFAULT_FRONTIER
 
     def check(self) -> None:
         """One :class:`ConfigError` naming the option for every out-of-range value (β against the problem's
         bound on m_f: :func:`check_beta`, once the problem is loaded)."""
         from amorgs.ablation.arms import SAMPLER_NAMES
-        from amorgs.problems import ALPHA_RANGES
+        from amorgs.problems import get_family
 
-        lo, hi = ALPHA_RANGES[PROBLEM]
+        lo, hi = get_family(PROBLEM).alpha_range
         if not (isinstance(self.alpha, (int, float)) and math.isfinite(self.alpha) and lo <= self.alpha <= hi):
             raise ConfigError(f"--alpha {self.alpha}: the maximum thrust α must lie in [{lo}, {hi}] N")
         if self.n < 1:
             raise ConfigError(f"-n {self.n}: ask for at least 1 solution")
-        if self.sampler not in SAMPLER_NAMES:
-            raise ConfigError(f"--sampler {self.sampler!r}: choose one of {', '.join(SAMPLER_NAMES)}")
+        if self.sampler != AUTO_SAMPLER and self.sampler not in SAMPLER_NAMES:
+            raise ConfigError(f"--sampler {self.sampler!r}: choose {AUTO_SAMPLER} or one of {', '.join(SAMPLER_NAMES)}")
         if not (math.isfinite(self.beta_kg) and self.beta_kg >= 0):
             raise ConfigError(f"--beta {self.beta_kg}: β must be a final mass ≥ 0 kg")
         if self.seed < 0:
@@ -237,6 +243,33 @@ def hq_cache_key(manifest: Path, train_alphas, min_final_mass_kg: float) -> str:
     return digest.hexdigest()[:16]
 
 
+def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
+    """``request`` with ``--sampler auto`` replaced by the arm the committed frontier (``request.frontier``)
+    recommends at ``request.alpha`` — :func:`~amorgs.ablation.frontier.choose_sampler` with the config's
+    training α (the library α the samplers draw from) and the arms whose checkpoints ``request.models_dir``
+    holds — and one line saying which and why; any other sampler is kept.  Without the frontier file: reuse."""
+    from dataclasses import replace
+
+    if request.sampler != AUTO_SAMPLER:
+        return request, f"sampler {request.sampler} (--sampler)"
+    from amorgs.ablation.arms import ARMS
+    from amorgs.ablation.frontier import choose_sampler
+    from amorgs.models.names import CHECKPOINTS
+
+    path = Path(request.frontier)
+    if not path.is_file():
+        return (replace(request, sampler=REUSE_ARM),
+                f"sampler {REUSE_ARM} (--sampler auto): no frontier table at {path}, reuse by default")
+    try:
+        table = pd.read_csv(path)
+        models = Path(request.models_dir)
+        available = tuple(a.name for a in ARMS if all((models / CHECKPOINTS[m]).is_file() for m in a.models))
+        choice = choose_sampler(table, request.alpha, cfg.problems.cr3bp.alphas.train_values(), available=available)
+    except (KeyError, ValueError, OSError, pd.errors.ParserError) as exc:
+        raise InputError(f"{path}: not a frontier table of `amorgs frontier` ({exc})") from None
+    return replace(request, sampler=choice.sampler), f"sampler {choice.sampler} (--sampler auto): {choice.reason}"
+
+
 def check_inputs_present(request: DesignRequest) -> None:
     """:class:`InputError` naming the file if an input of the requested sampler is missing: a checkpoint it
     loads, or the library's manifest (a library with files but no manifest is named as such).  Only presence
@@ -275,6 +308,9 @@ def make_sampler(request: DesignRequest, cfg, problem):
         shipped = verify_models(models_dir, tuple(CHECKPOINTS[m] for m in arm.models))
         if shipped is not None:
             info["models_git_commit"] = shipped["git_commit"]
+            note = stale_models_note(shipped, request.library_dir, models_dir)
+            if note:
+                info["models_note"] = note
     hq = None
     if arm.high_quality:
         hq = library_high_quality(request.library_dir, train, section.filter.min_final_mass_kg)
@@ -294,6 +330,20 @@ def make_sampler(request: DesignRequest, cfg, problem):
         info["nearest_training_alpha"] = float(nearest)
         info["nearest_alpha_seed_rows"] = int(len(by_alpha[nearest]))
     return sampler, info
+
+
+def stale_models_note(shipped: dict, library_dir: str | Path, models_dir: Path) -> str:
+    """A line when the shipped models (their provenance: ``library_rows``, ``library_manifest_sha256``) were
+    trained on another library than ``library_dir`` holds today; empty when it is the same one."""
+    from amorgs.data.library import MANIFEST, read_manifest, sha256_file
+
+    manifest = Path(library_dir) / PROBLEM / MANIFEST
+    held = read_manifest(library_dir, PROBLEM) if manifest.is_file() else None
+    if held is None or shipped.get("library_manifest_sha256") in (None, sha256_file(manifest)):
+        return ""
+    return (f"the models in {models_dir} were trained on an older library ({shipped.get('library_rows')} solves) "
+            f"than {library_dir} holds today ({held['totals']['rows']} solves): retrain them on it "
+            "(the workflow's train_cr3bp, then amorgs models-export) to learn from every solution")
 
 
 def select_diverse(hq: pd.DataFrame, eta: float, n: int) -> tuple[int, pd.DataFrame]:
@@ -360,6 +410,7 @@ def prepare(request: DesignRequest, start_workers: bool = True) -> Prepared:
     if not Path(request.config).is_file():
         raise InputError(f"{request.config}: config file not found (--config)")
     cfg = load_config(request.config)
+    request, choice = resolve_sampler(request, cfg)
     problem = get_problem(PROBLEM)
     check_beta(request.beta_kg, problem)
     check_inputs_present(request)
@@ -372,6 +423,7 @@ def prepare(request: DesignRequest, start_workers: bool = True) -> Prepared:
             pool.close()
         raise
     info["solver_options"] = solver_options.to_dict()
+    info["sampler_choice"] = choice
     return Prepared(cfg, solver_options, problem, sampler, info, pool)
 
 
@@ -398,6 +450,10 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
         pool = prepared.pool or stack.enter_context(WorkerPool(problem, pool_size(request), solver_options,
                                                                alpha=request.alpha))
         info = dict(prepared.info)
+        if request.sampler == AUTO_SAMPLER:  # the result names the sampler that ran
+            from dataclasses import replace
+
+            request = replace(request, sampler=info["sampler"])
         rng = np.random.default_rng(request.seed)
 
         def cpu_s() -> float:  # this process, the workers that ended, and the live ones so far
