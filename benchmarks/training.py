@@ -26,7 +26,6 @@ import pandas as pd
 import torch
 
 from amorgs.config import load_config
-from amorgs.data.filter import high_quality
 from amorgs.data.library import read_library, read_manifest
 from amorgs.models import cr3bp_models
 from amorgs.models.lstm import ControlLSTM
@@ -72,7 +71,7 @@ def main() -> None:
         sys.exit(f"{args.library_dir / 'cr3bp'}: no library manifest")
     rows = pd.concat([read_library(args.library_dir, "cr3bp", f"{a:.3f}") for a in problem.alphas.train_values()],
                      ignore_index=True)
-    hq = high_quality(rows, min_final_mass_kg=problem.filter.min_final_mass_kg)
+    hq = problem.filter.select(rows)
     train_cfg = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=1e-3, seed=0, device="cpu",
                             progress_every=0)
     table = []

@@ -10,6 +10,7 @@ import pytest
 
 from amorgs.data import filter as F
 from amorgs.data import io, seeds, tables
+from amorgs.problems.cr3bp import Cr3bpFilter
 
 
 def solutions(n: int = 4, shard: int = 0, alpha: float = 0.5, seed: int = 11, problem: str = "cr3bp") -> pd.DataFrame:
@@ -81,18 +82,10 @@ def test_json_writes_nan_as_null(tmp_path):
     assert io.read_json(tmp_path / "r.json") == {"a": None, "b": [1.0, None]}
 
 
-def test_high_quality_applies_thresholds():
-    df = solutions(4)  # m_f = 400, 410, 420, 430; converged = starts 1 and 3
-    assert F.high_quality(df)["start"].tolist() == [1, 3]
-    assert F.high_quality(df, min_final_mass_kg=415.0)["start"].tolist() == [3]
-    assert F.high_quality(df, max_objective=-415.0)["start"].tolist() == [3]
-    assert F.high_quality(df, min_final_mass_kg=440.0).empty
-
-
 def test_quality_report_per_alpha():
     # α = 0.5: m_f 400…430, converged 410 and 430; α = 0.1: m_f 400 and 430, converged 430
     df = pd.concat([solutions(4, alpha=0.5), solutions(2, alpha=0.1, seed=3)], ignore_index=True)
-    hq = F.high_quality(df, min_final_mass_kg=415.0)
+    hq = Cr3bpFilter(min_final_mass_kg=415.0).select(df)
     report = F.quality_report(df, hq, {"min_final_mass_kg": 415.0})
     assert (report["n"], report["converged"], report["high_quality"]) == (6, 3, 2)
     by_alpha = {e["alpha"]: e for e in report["per_alpha"]}

@@ -1,9 +1,9 @@
-"""The quality report of a filtered solution table, and the β-filter by keyword.
+"""The quality report of a filtered solution table.
 
 What "high quality" means belongs to each problem family: its quality filter
 (:class:`~amorgs.problems.base.QualityFilter`: :class:`~amorgs.problems.cr3bp.Cr3bpFilter`, m_f ≥ β kg;
-:class:`~amorgs.problems.dejong.DejongFilter`, J ≤ a bound), which the workflow's filter step applies.
-:func:`high_quality` states the same thresholds by keyword for ``amorgs design``.
+:class:`~amorgs.problems.dejong.DejongFilter`, J ≤ a bound), which the workflow's filter step and
+``amorgs design`` apply.
 """
 
 from __future__ import annotations
@@ -12,19 +12,6 @@ import math
 
 import numpy as np
 import pandas as pd
-
-
-def high_quality(
-    df: pd.DataFrame, *, min_final_mass_kg: float | None = None, max_objective: float | None = None
-) -> pd.DataFrame:
-    """Rows that converged and pass every given threshold (index reset, order kept): final mass m_f ≥
-    ``min_final_mass_kg`` (kg), objective ≤ ``max_objective``; a threshold of ``None`` is not applied."""
-    keep = df["converged"].astype(bool)
-    if min_final_mass_kg is not None:
-        keep &= df["m_f"] >= min_final_mass_kg
-    if max_objective is not None:
-        keep &= df["objective"] <= max_objective
-    return df.loc[keep].reset_index(drop=True)
 
 
 def _stats(values: pd.Series, prefix: str) -> dict[str, float]:

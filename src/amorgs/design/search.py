@@ -191,8 +191,8 @@ def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_k
     same table.  The newest :data:`HQ_CACHE_ENTRIES` entries are kept; an unreadable or unwritable cache is
     ignored.
     """
-    from amorgs.data.filter import high_quality
     from amorgs.data.io import atomic_path
+    from amorgs.problems.cr3bp import Cr3bpFilter
     from amorgs.data.library import MANIFEST, read_library, verify_library
     from amorgs.solvers.codegen import cache_dir
 
@@ -209,7 +209,7 @@ def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_k
     frames = [f for f in frames if len(f)]
     if not frames:
         raise InputError(f"{manifest}: the library holds no solutions at the training α {list(train_alphas)}")
-    hq = high_quality(pd.concat(frames, ignore_index=True), min_final_mass_kg=min_final_mass_kg)
+    hq = Cr3bpFilter(min_final_mass_kg=min_final_mass_kg).select(pd.concat(frames, ignore_index=True))
     if not len(hq):
         raise InputError(f"{manifest}: no library solution at the training α has m_f ≥ {min_final_mass_kg} kg")
     if cache:
@@ -227,17 +227,18 @@ def library_high_quality(library_dir: str | Path, train_alphas, min_final_mass_k
 def hq_cache_key(manifest: Path, train_alphas, min_final_mass_kg: float) -> str:
     """Key of a cached :func:`library_high_quality` table: SHA-256 (16 hex digits) of the manifest's bytes, the
     training α labels, β (kg) and the code that reads and filters the library (this module and
-    :mod:`amorgs.data.library`, :mod:`~amorgs.data.filter`, :mod:`~amorgs.data.tables`)."""
+    :mod:`amorgs.data.library`, :mod:`~amorgs.data.tables` and the quality filter's :mod:`amorgs.problems.base`,
+    :mod:`amorgs.problems.cr3bp`)."""
     import hashlib
     import json
 
-    from amorgs.data import filter as filter_module
     from amorgs.data import library, tables
+    from amorgs.problems import base, cr3bp
 
     digest = hashlib.sha256(manifest.read_bytes())
     digest.update(json.dumps({"train": sorted(alpha_label(a) for a in train_alphas),
                               "beta_kg": float(min_final_mass_kg)}).encode())
-    for module in (library, filter_module, tables):
+    for module in (library, tables, base, cr3bp):
         digest.update(Path(module.__file__).read_bytes())
     digest.update(Path(__file__).read_bytes())
     return digest.hexdigest()[:16]
@@ -433,8 +434,8 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
     (``found``, ``n``, ``starts``, ``max_starts``, ``cpu_s``, ``max_cpu_s``, ``wall_s``, ``round``), ``started``
     once, as soon as the first guess is with a solver worker.  ``prepared``: the result of :func:`prepare` for
     this request (made here if not given); its workers serve every round and end with the search."""
-    from amorgs.data.filter import high_quality
     from amorgs.data.tables import validate_solutions
+    from amorgs.problems.cr3bp import Cr3bpFilter
     from amorgs.solvers.multistart import WorkerPool, records_table
 
     wall0, cpu0 = time.perf_counter(), _cpu_seconds()
@@ -480,7 +481,7 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
             starts += size
             rounds += 1
             solves = pd.concat(tables, ignore_index=True)
-            hq = high_quality(solves, min_final_mass_kg=request.beta_kg)
+            hq = Cr3bpFilter(min_final_mass_kg=request.beta_kg).select(solves)
             found, selected = select_diverse(hq, request.eta, request.n)
             if progress is not None:
                 progress({"round": rounds, "found": found, "n": request.n, "starts": starts,

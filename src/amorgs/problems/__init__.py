@@ -16,9 +16,6 @@ from amorgs.problems.base import Family, LocalSolver, Problem, QualityFilter, So
 #: Every registered family by name, in the workflow's order.
 FAMILIES: dict[str, Family] = {f.name: f for f in (dejong.FAMILY, cr3bp.FAMILY)}
 PROBLEMS = tuple(FAMILIES)
-#: α range of each family (inclusive, in its ``alpha_unit``), read by ``amorgs design``; it is
-#: ``FAMILIES[name].alpha_range``.
-ALPHA_RANGES = {name: f.alpha_range for name, f in FAMILIES.items()}
 
 
 def get_family(name: str) -> Family:
@@ -45,5 +42,5 @@ def get_problem(name: str) -> Problem:
     return get_family(name).build()
 
 
-__all__ = ["ALPHA_RANGES", "FAMILIES", "PROBLEMS", "Family", "LocalSolver", "Problem", "QualityFilter", "SolveRecord",
+__all__ = ["FAMILIES", "PROBLEMS", "Family", "LocalSolver", "Problem", "QualityFilter", "SolveRecord",
            "get_family", "get_problem"]
