@@ -293,10 +293,13 @@ def test_auto_follows_the_frontier_and_says_why(tmp_path):
     frontier.write_text("not,a\nfrontier,table\n")
     with pytest.raises(InputError, match="frontier.csv: not a frontier table"):
         resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=str(frontier)), cfg)
-    # the shipped models were exported from a run on an older library than the committed one
+    # models trained on another library than the one read are named; on the same library nothing is said
+    from amorgs.data.library import sha256_file
     from amorgs.models.shipped import verify_models
 
     shipped = verify_models("data/models/cr3bp")
-    note = stale_models_note(shipped, "data/library", "data/models/cr3bp")
-    assert f"({shipped['library_rows']} solves)" in note and "retrain" in note
-    assert stale_models_note({**shipped, "library_manifest_sha256": None}, "data/library", "data/models/cr3bp") == ""
+    older = {**shipped, "library_manifest_sha256": "0" * 64, "library_rows": 828}
+    note = stale_models_note(older, "data/library", "data/models/cr3bp")
+    assert "older library (828 solves)" in note and "retrain" in note
+    same = {**shipped, "library_manifest_sha256": sha256_file("data/library/cr3bp/provenance.json")}
+    assert stale_models_note(same, "data/library", "data/models/cr3bp") == ""
