@@ -193,14 +193,14 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
 
     # CR3BP: analysis, models (trained on the training α only), predictions, ablation
     from amorgs import layout
-    from amorgs.models.names import CR3BP_MODELS
+    from amorgs.steps.train import main_models
 
     analysis = child("analyze_cr3bp")
     assert analysis.data.metrics
     assert {a.path for a in client.list_artifacts(analysis.info.run_id, "figures")} == {
         f"figures/{n}.png" for n in layout.ANALYSIS_FIGURES
     }
-    for model in CR3BP_MODELS:
+    for model in main_models(cfg):
         train = child("train_cr3bp", model=model)
         history = client.get_metric_history(train.info.run_id, "loss")
         assert [m.step for m in history] == list(range(1, cfg.cr3bp_models.epochs + 1))

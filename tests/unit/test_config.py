@@ -202,8 +202,8 @@ def test_hash_is_stable_and_sensitive():
 #: be deliberate.  When the configs became overrides (issue 24) they kept their hashes (54ec484af246,
 #: f525fd3bb34c, 2fb02d3f87c6, c1e2323bc951, 0f7cc1375afe); these are after the default solver became the
 #: interpolated-coast one (issue 22), which changes every effective config's solver options, and default and
-#: smoke run the continuation arm (issue 21).
-HASHES = {"default": "9d6c6630398c", "smoke": "b3b794675580", "study": "14008f6cb339",
+#: smoke run the continuation arm and the reuse-conditioned CVAE (issue 21).
+HASHES = {"default": "1072eacfb8f2", "smoke": "67749cdeb1c3", "study": "14008f6cb339",
           "study-paper": "214116ab497f", "paper": "ee4918b2a606"}
 
 

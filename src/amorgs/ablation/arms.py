@@ -95,6 +95,9 @@ ARMS: tuple[Arm, ...] = (
     # issue 21 §3: reuse moved along α by a secant between neighbouring training α (built to beat reuse)
     Arm("continuation", "Nearest training α moved by a secant in α", f"{_BASELINES}:ContinuationSampler.build",
         high_quality=True, pooled=True),
+    # issue 21 §3: reuse's retrieved solutions, each corrected to α by a CVAE conditioned on it
+    Arm("reuse_cvae", "Nearest training α + learned correction (reuse-conditioned CVAE)",
+        "amorgs.models.reuse_cvae:ReuseCVAESampler.build", models=("reuse_cvae",), high_quality=True, pooled=True),
 )
 
 #: Name → arm.

@@ -46,6 +46,7 @@ import torch
 from amorgs.models.baselines import stored_from_vanilla, vanilla_vectors  # noqa: F401  (the layout, torch-free)
 from amorgs.models.cvae import CVAEConfig, GMMPriorCVAE, Normalizer, VanillaCVAE, VanillaCVAEConfig
 from amorgs.models.lstm import ControlLSTM, LSTMConfig, cartesian_controls
+from amorgs.models.reuse_cvae import ReuseCVAE, train_reuse_cvae
 from amorgs.models.training import TrainConfig, train
 from amorgs.problems.cr3bp.transcription import N_SEGMENTS, variable_names
 
@@ -164,8 +165,9 @@ def train_control_lstm(
 
 
 #: Model name (= checkpoint stem) → its training entry point.
-TRAINERS: dict[str, Callable[..., GMMPriorCVAE | VanillaCVAE | ControlLSTM]] = {
+TRAINERS: dict[str, Callable[..., GMMPriorCVAE | VanillaCVAE | ControlLSTM | ReuseCVAE]] = {
     "cvae_gmm": train_time_mass_cvae,
     "vanilla_cvae": train_vanilla_cvae,
     "lstm": train_control_lstm,
+    "reuse_cvae": train_reuse_cvae,
 }

@@ -422,12 +422,16 @@ def save(model: GMMPriorCVAE | VanillaCVAE, path: str | Path) -> None:
     )
 
 
-def load(path: str | Path) -> GMMPriorCVAE | VanillaCVAE:
-    """Rebuild a model written by :func:`save`, on the CPU and in eval mode."""
+def load(path: str | Path, models: dict[str, tuple[type[_CVAE], type[VanillaCVAEConfig]]] | None = None):
+    """Rebuild a model written by :func:`save`, on the CPU and in eval mode.  ``models`` maps the class names
+    a checkpoint may hold to (class, config class); default: the two paper CVAEs."""
+    models = _MODELS if models is None else models
     ckpt = torch.load(Path(path), map_location="cpu", weights_only=True)
-    if ckpt.get("format") != CHECKPOINT_FORMAT or ckpt.get("model") not in _MODELS:
+    if ckpt.get("format") != CHECKPOINT_FORMAT:
         raise ValueError(f"{path}: not an amorgs CVAE checkpoint (format {ckpt.get('format')!r})")
-    cls, cfg_cls = _MODELS[ckpt["model"]]
+    if ckpt.get("model") not in models:
+        raise ValueError(f"{path}: holds a {ckpt.get('model')!r}, expected one of {sorted(models)}")
+    cls, cfg_cls = models[ckpt["model"]]
     cfg = cfg_cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in ckpt["config"].items()})
     model = cls(cfg)
     model.load_state_dict(ckpt["state_dict"])

@@ -25,6 +25,8 @@ and one built to beat reuse (issue 21 §3)::
 
     continuation             nearest_alpha's draw, each solution moved to α by a secant to its nearest
                              match at a neighbouring training α
+    reuse_cvae               nearest_alpha's draw, each solution replaced by a sample of a CVAE of its
+                             correction to α (:mod:`amorgs.models.reuse_cvae`)
 
 The model-free ones (uniform, the two nearest-α arms, continuation) are defined in
 :mod:`amorgs.models.baselines`, which imports no torch, and re-exported here.
@@ -46,7 +48,8 @@ import numpy as np
 import pandas as pd
 import torch
 
-from amorgs.models import cvae, lstm
+from amorgs.models import cvae, lstm, reuse_cvae
+from amorgs.models.reuse_cvae import ReuseCVAESampler  # noqa: F401  (re-exported: one place for all samplers)
 from amorgs.models.baselines import (  # noqa: F401  (the model-free samplers, re-exported: one place for all)
     ContinuationSampler,
     NearestAlphaPerturbedSampler,
@@ -237,6 +240,7 @@ LOADERS = {
     "cvae_gmm": lambda path: _load_cvae(path, cvae.GMMPriorCVAE),
     "vanilla_cvae": lambda path: _load_cvae(path, cvae.VanillaCVAE),
     "lstm": lstm.load,
+    "reuse_cvae": reuse_cvae.load,
 }
 
 

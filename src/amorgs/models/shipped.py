@@ -23,10 +23,10 @@ from amorgs.data.io import atomic_path, write_json
 from amorgs.data.library import MANIFEST as LIBRARY_MANIFEST
 from amorgs.data.library import git_commit, read_manifest, sha256_file
 from amorgs.errors import InputError
-from amorgs.models.names import CR3BP_MODELS
+from amorgs.models.names import PAPER_MODELS
 
 MANIFEST = "provenance.json"
-CHECKPOINT_FILES = tuple(f"{name}.pt" for name in CR3BP_MODELS)
+CHECKPOINT_FILES = tuple(f"{name}.pt" for name in PAPER_MODELS)
 
 
 def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: str | Path,

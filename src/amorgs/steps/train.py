@@ -12,7 +12,7 @@ from pydantic import Field
 from amorgs import layout
 from amorgs.alphas import alpha_label, rows_at_any
 from amorgs.config import Config, Cr3bpModels, Section
-from amorgs.models.names import CR3BP_MODELS
+from amorgs.models.names import CR3BP_MODELS, PAPER_MODELS
 from amorgs.steps import Job, Step, Wildcards, resources_of
 
 
@@ -85,6 +85,15 @@ def fraction_model_jobs(cfg: Config) -> list[dict[str, str]]:
     return [{"fraction": layout.fraction_label(f), "model": m} for f in cfg.cr3bp_models.data_fractions for m in models]
 
 
+def main_models(cfg: Config) -> list[str]:
+    """The models of the main training seed: the paper's three (predictions, figures) and any other model
+    an ablation arm loads (the reuse-conditioned CVAE only when its arm is in ``ablation.samplers``)."""
+    if not cfg.cr3bp_models.enabled:
+        return []
+    needed = set(PAPER_MODELS) | set(replicate_models_needed(cfg))
+    return [m for m in CR3BP_MODELS if m in needed]
+
+
 def replicate_models_needed(cfg: Config) -> list[str]:
     """The models the ablation's arms load (only those are trained for the extra seeds)."""
     from amorgs.ablation.arms import models_loaded
@@ -95,7 +104,7 @@ def replicate_models_needed(cfg: Config) -> list[str]:
 STAGE = 5
 STEPS = (
     Step("train_cr3bp", TrainSettings, _settings, run_train,
-         lambda cfg: [{"model": m} for m in CR3BP_MODELS] if cfg.cr3bp_models.enabled else [],
+         lambda cfg: [{"model": m} for m in main_models(cfg)],
          lambda w: _outputs(layout.CR3BP_MODEL.format_map(w)),
          resources=resources_of("train"),
          description="one CR3BP model on the high-quality rows at the training α → checkpoint"),
