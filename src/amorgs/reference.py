@@ -184,6 +184,10 @@ def _readme(manifest: dict, dest: Path) -> str:
         f"make), manifest SHA-256 `{str(lib['manifest_sha256'])[:12]}…`",
         f"- CPU spent by the run: {cpu['total']:.3g} hours ("
         + ", ".join(f"{rule} {hours:.3g}" for rule, hours in cpu.items() if rule != "total" and hours > 0) + ")",
+        *([f"- arms {', '.join(manifest['arms_run'])} from this run (rerun arms reproduced exactly, starts compared: "
+           f"{manifest['reproduced'] or 'none'}); arms {', '.join(manifest['earlier_run']['arms'])} from the earlier "
+           f"run at git commit `{manifest['earlier_run']['git_commit']}` ({manifest['earlier_run']['cpu_hours']['total']:.3g} "
+           "CPU-hours), kept (`amorgs reference-export --add-arms`)"] if "earlier_run" in manifest else []),
         f"- regenerate: `{manifest['command']}` on the same commit and library, then `amorgs reference-export "
         f"--config {manifest['config_file']} --dest {dest.as_posix()}`. Everything but CPU timings is "
         "deterministic (IPOPT iterations, rates, aRT in iterations).",
@@ -290,3 +294,116 @@ def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers
         "packages": {k.removeprefix("version."): v for k, v in package_versions().items()},
         "rows": json.loads(table.to_json(orient="records")),
     }
+
+
+#: Columns of :data:`STARTS_FILE` that a rerun need not reproduce (timings).
+TIMING_COLUMNS = ("cpu_s", "wall_s")
+
+
+def _same_design(cfg, base_cfg) -> bool:
+    """Whether two effective configs are one design but for ``ablation.samplers`` and the library's path."""
+    def key(c) -> dict:
+        d = c.model_dump(mode="json")
+        d["ablation"].pop("samplers")
+        for problem in d["problems"].values():
+            problem["library"].pop("path", None)
+        return d
+    return key(cfg) == key(base_cfg)
+
+
+def add_arms_to_reference(dest: str | Path, arms, config_file: str | Path, run_dir: str | Path = ".",
+                          library_dir: str | Path = "data/library") -> dict:
+    """Add the starts of ``arms`` to the committed reference ``dest`` from a later run, without rerunning the
+    arms it holds: the run of ``config_file`` in ``run_dir`` (the reference's design with ``arms`` among its
+    ``ablation.samplers``, on the library the reference read — the same manifest SHA-256) need only have
+    finished the ablation cells of ``arms``.  Arms the reference already holds and ``arms`` names again are the
+    *reproduction check*: their rerun starts must equal the committed ones in every column but the timings
+    (:data:`TIMING_COLUMNS`), else nothing is written.  Writes the merged :data:`STARTS_FILE` (the run's cell
+    order), the run's config and a manifest of the run that names the earlier one (``earlier_run``: its commit,
+    export time, CPU-hours, config SHA-256, arms) and what was rerun (``arms_run``, ``reproduced``: arm → starts
+    compared).  ``InputError`` names the file or key that does not fit."""
+    run, dst = Path(run_dir), Path(dest)
+    base = verify_reference(dst)
+    if not (dst / STARTS_FILE).is_file():
+        raise InputError(f"{dst / STARTS_FILE}: the reference has no per-start table to add arms to")
+    cfg, base_cfg = load_config(run / config_file), load_config(dst / CONFIG_COPY)
+    arms = tuple(dict.fromkeys(arms))
+    old = pd.read_parquet(dst / STARTS_FILE)
+    held = tuple(dict.fromkeys(old["sampler"]))
+    if not arms or not set(arms) <= set(cfg.ablation.samplers):
+        raise InputError(f"{run / config_file}: ablation.samplers {list(cfg.ablation.samplers)} must hold every arm "
+                         f"added ({list(arms)})")
+    if not set(held) <= set(cfg.ablation.samplers) or not _same_design(cfg, base_cfg):
+        raise InputError(f"{run / config_file}: not the design of {dst / CONFIG_COPY} (every key but "
+                         "ablation.samplers and the library path must be equal, and the samplers must keep its arms)")
+    library = run / library_dir / "cr3bp" / LIBRARY_MANIFEST
+    library_sha = sha256_file(library) if library.is_file() else None
+    if library_sha != base["library"]["manifest_sha256"]:
+        raise InputError(f"{run / library_dir}: not the library {dst} read (manifest SHA-256 "
+                         f"{str(base['library']['manifest_sha256'])[:12]}…)")
+
+    order = [p for rule in START_RULES for p in outputs_of(rule, cfg, "table")]
+    cells = {p: pd.read_parquet(run / p) for p in order if (run / p).is_file()}
+    cells = {p: df for p, df in cells.items() if len(df) and df["sampler"].iloc[0] in arms}
+    wanted = [p for p in order if any(f"/{arm}.parquet" in p for arm in arms)]
+    missing = [p for p in wanted if p not in cells]
+    if missing:
+        raise InputError(f"{run / missing[0]}: output missing ({len(missing)} cells of {list(arms)}) — run them first")
+    new = starts_table({_relative(p): df for p, df in cells.items()})
+    reproduced = {}
+    for arm in (a for a in arms if a in held):
+        def deterministic(df: pd.DataFrame) -> pd.DataFrame:
+            rows = df[df["sampler"] == arm].drop(columns=[c for c in TIMING_COLUMNS if c in df])
+            return rows.sort_values(["cell", "start"]).reset_index(drop=True)
+        try:
+            pd.testing.assert_frame_equal(deterministic(new), deterministic(old), check_exact=True, check_dtype=False,
+                                          check_like=True)
+        except AssertionError as exc:
+            raise InputError(f"{run}: the rerun of {arm!r} does not reproduce {dst / STARTS_FILE} — nothing written "
+                             f"({str(exc).splitlines()[0]})") from None
+        reproduced[arm] = int((new["sampler"] == arm).sum())
+    merged = pd.concat([old[~old["sampler"].isin(arms)], new], ignore_index=True)
+    rank = {_relative(p): i for i, p in enumerate(order)}
+    merged = merged.iloc[np.argsort([rank.get(c, len(rank)) for c in merged["cell"]], kind="stable")]
+    merged = merged.reset_index(drop=True)
+
+    with atomic_path(dst / STARTS_FILE) as tmp:
+        merged.to_parquet(tmp, index=False, compression="zstd")
+    with atomic_path(dst / CONFIG_COPY) as tmp:
+        shutil.copyfile(run / config_file, tmp)
+    seconds = sum(float(df["cpu_s"].sum()) for df in cells.values() if "cpu_s" in df)
+    trained = [p for rule in TRAIN_RULES for p in outputs_of(rule, cfg, "report")
+               if (run / p).is_file() and json.loads((run / p).read_text())["model"] in _models_of(arms)]
+    train_s = sum(json.loads((run / p).read_text())["train_cpu_s"] for p in trained)
+    manifest = {
+        **{k: base[k] for k in ("config_file",)},
+        "config_sha256": sha256_file(dst / CONFIG_COPY),
+        "config_hash": cfg.hash,
+        "command": f"snakemake <the cells of {' '.join(arms)}> --configfile {config_file} --cores N",
+        **git_state(run),
+        "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "packages": {k.removeprefix("version."): v for k, v in package_versions().items()},
+        "library": base["library"],
+        "cpu_hours": {"ablation_cells_run": seconds / 3600.0, "training_run": train_s / 3600.0,
+                      "total": (seconds + train_s) / 3600.0},
+        "arms_run": list(arms),
+        "reproduced": reproduced,
+        "earlier_run": {"git_commit": base["git_commit"], "exported": base["exported"],
+                        "config_sha256": base["config_sha256"], "cpu_hours": base["cpu_hours"],
+                        "arms": [a for a in held if a not in arms],
+                        **({"earlier_run": base["earlier_run"]} if "earlier_run" in base else {})},
+        "files": [{"file": STARTS_FILE, "rule": "ablation_cell", "sha256": sha256_file(dst / STARTS_FILE),
+                   "bytes": (dst / STARTS_FILE).stat().st_size, "rows": len(merged)}],
+        "solve_tables": [{"file": _relative(p), "rows": len(df), "sha256": sha256_file(run / p)} for p, df in cells.items()],
+    }
+    write_json(manifest, dst / MANIFEST)
+    with atomic_path(dst / README) as tmp:
+        tmp.write_text(_readme(manifest, _shown(dst, run)))
+    return manifest
+
+
+def _models_of(arms) -> set[str]:
+    """The models the arms load."""
+    from amorgs.ablation.arms import models_loaded
+
+    return set(models_loaded(arms))

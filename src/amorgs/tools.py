@@ -178,6 +178,14 @@ def cmd_reference_export(args: argparse.Namespace) -> None:
         return
     if args.config is None:
         raise SystemExit("amorgs reference-export: --config is required (the config of the finished run)")
+    if args.add_arms:
+        from amorgs.reference import add_arms_to_reference
+
+        manifest = add_arms_to_reference(args.dest, args.add_arms, args.config, args.run_dir, args.library_dir)
+        print(f"{args.dest}: arms {', '.join(args.add_arms)} added from the run of {args.config} "
+              f"({manifest['cpu_hours']['total']:.2f} CPU-hours; reproduced exactly: {manifest['reproduced'] or 'none'}); "
+              f"the other arms kept from {manifest['earlier_run']['git_commit'][:10]}")
+        return
     manifest = export_reference(args.config, args.dest, args.run_dir, args.library_dir, figures=not args.no_figures,
                                 tables=not args.starts_only)
     print(f"{args.dest}: {len(manifest['files'])} files from the run of {args.config} "
@@ -390,6 +398,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--starts-only", action="store_true",
                    help="only the starts (starts.parquet), the config and the manifest: no report outputs")
     p.add_argument("--check", action="store_true", help="verify the files of --dest against its manifest instead")
+    p.add_argument("--add-arms", nargs="+", metavar="ARM", default=None,
+                   help="add these arms' starts to the reference in --dest from a later run of its design that ran only "
+                        "their cells (arms it holds are rerun as a check: they must reproduce exactly)")
     p.set_defaults(func=cmd_reference_export)
 
     p = sub.add_parser("reference-certify",

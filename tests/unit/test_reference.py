@@ -127,3 +127,73 @@ def test_the_committed_frontier_is_recomputed_from_its_folds_starts_and_the_ship
     table = frontier_table([read_run(FRONTIER / name) for name in FOLDS])  # verifies each fold's manifest
     committed = pd.read_csv(FRONTIER / "frontier.csv")
     pd.testing.assert_frame_equal(table, committed, check_dtype=False, rtol=1e-12)
+
+
+def _run_with_arms(tmp_path, base: Path, arms_from: dict[str, str], tamper: bool = False) -> Path:
+    """A run directory of ``base``'s design with ``reuse_cvae`` added to its samplers, holding only the cell
+    tables of the arms in ``arms_from`` (arm → the committed arm whose starts it copies), and the library
+    manifest ``base`` read (a stand-in file whose SHA-256 the copied reference is told)."""
+    import json
+
+    import pandas as pd
+    import yaml
+
+    run = tmp_path / "run"
+    cfg = yaml.safe_load((base / "config.yaml").read_text())
+    cfg["ablation"]["samplers"] = [*cfg["ablation"]["samplers"], "reuse_cvae"]
+    (run / "data" / "library" / "cr3bp").mkdir(parents=True)
+    (run / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    manifest = run / "data" / "library" / "cr3bp" / "provenance.json"
+    manifest.write_text(json.dumps({"totals": {"rows": 1, "converged": 1, "cpu_hours": 0.0}}))
+    from amorgs.data.library import sha256_file
+
+    prov = json.loads((base / "provenance.json").read_text())
+    prov["library"]["manifest_sha256"] = sha256_file(manifest)
+    (base / "provenance.json").write_text(json.dumps(prov))
+    starts = pd.read_parquet(base / "starts.parquet")
+    for arm, source in arms_from.items():
+        for cell, rows in starts[starts["sampler"] == source].groupby("cell", sort=False):
+            table = rows.drop(columns="cell").assign(sampler=arm).reset_index(drop=True)
+            if tamper and arm == source:
+                table.loc[0, "iterations"] += 1
+            path = run / "results" / cell.replace(f"/{source}.parquet", f"/{arm}.parquet")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            table.to_parquet(path)
+    return run
+
+
+def test_add_arms_keeps_the_committed_arms_and_checks_the_rerun_ones(tmp_path):
+    """``reference-export --add-arms``: a run of the fold's design that ran only the cells of the new arm and of
+    reuse (the check) adds the new arm; reuse must reproduce exactly, else nothing is written."""
+    import shutil
+
+    import pandas as pd
+
+    from amorgs.errors import InputError
+    from amorgs.frontier import read_run
+    from amorgs.reference import add_arms_to_reference
+
+    base = tmp_path / "sparse-3"
+    shutil.copytree(FRONTIER / "sparse-3", base)
+    before = pd.read_parquet(base / "starts.parquet")
+    run = _run_with_arms(tmp_path, base, {"nearest_alpha": "nearest_alpha", "reuse_cvae": "nearest_alpha"}, tamper=True)
+    with pytest.raises(InputError, match="rerun of 'nearest_alpha' does not reproduce"):
+        add_arms_to_reference(base, ["reuse_cvae", "nearest_alpha"], "config.yaml", run)
+    pd.testing.assert_frame_equal(pd.read_parquet(base / "starts.parquet"), before)  # nothing written
+
+    shutil.rmtree(run)
+    run = _run_with_arms(tmp_path, base, {"nearest_alpha": "nearest_alpha", "reuse_cvae": "nearest_alpha"})
+    manifest = add_arms_to_reference(base, ["reuse_cvae", "nearest_alpha"], "config.yaml", run)
+    assert manifest["reproduced"] == {"nearest_alpha": int((before["sampler"] == "nearest_alpha").sum())}
+    assert manifest["earlier_run"]["arms"] == ["uniform", "amorgs", "continuation"]
+    after = pd.read_parquet(base / "starts.parquet")
+    assert len(after) == len(before) + (before["sampler"] == "nearest_alpha").sum()
+    kept = after[after["sampler"] != "reuse_cvae"].sort_values(["cell", "start"]).reset_index(drop=True)
+    pd.testing.assert_frame_equal(kept, before.sort_values(["cell", "start"]).reset_index(drop=True))
+    fold = read_run(base)  # the frontier reads it: every cell of the five arms, the manifest verified
+    assert set(fold.cells["sampler"]) == {"uniform", "nearest_alpha", "amorgs", "continuation", "reuse_cvae"}
+    readme = (base / "README.md").read_text()
+    assert "arms reuse_cvae, nearest_alpha from this run" in readme and "arms uniform, amorgs, continuation from the earlier" in readme
+    with pytest.raises(InputError, match="not the design"):
+        (run / "config.yaml").write_text((run / "config.yaml").read_text().replace("n_starts: 34", "n_starts: 35"))
+        add_arms_to_reference(base, ["reuse_cvae"], "config.yaml", run)
