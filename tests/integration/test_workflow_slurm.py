@@ -3,9 +3,13 @@
 ``scripts/local-slurm start`` runs a one-node cluster on this machine (Debian's slurmctld, slurmd and munge,
 no accounting database); cluster jobs log to a real ``mlflow server`` on 127.0.0.1 through config
 ``mlflow.tracking_uri``.  The smoke config must give the tables of a local run; a job cancelled with
-``scancel`` and a node set DOWN then RESUMEd must lose and duplicate no rows.  Starting SLURM needs root (and
-apt-get when it is not installed): without them every test here skips and says why.  The file sorts after
-test_workflow.py, so in CI the local smoke run it compares with (``AMORGS_SMOKE_WORKDIR``) already exists.
+``scancel`` and a node set DOWN then RESUMEd must lose and duplicate no rows.
+
+Opt-in with ``AMORGS_SLURM_TESTS=1``, which ``.ci/run`` sets (they install and start system daemons).  Starting
+SLURM needs root (and apt-get when it is not installed): without them every test here skips and says why.  Under
+pytest-xdist, tests/conftest.py runs them on one worker after the local smoke test, one at a time, so that in CI
+the local smoke run they compare with (``AMORGS_SMOKE_WORKDIR``) has finished, and no test sets the node DOWN
+under another's jobs.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import yaml
 from mlflow_serving import free_port, serving
 from test_workflow import ROOT, SMOKE_WORKDIR, SNAKEMAKE, _interrupt_config, _tables, smoke_config, workdir
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.slow  # and on one xdist worker, after the local smoke run, one at a time: tests/conftest.py
 
 ENV = {k: v for k, v in os.environ.items() if k not in ("PYTEST_CURRENT_TEST", "MLFLOW_TRACKING_URI")}
 LOCAL_SLURM = str(ROOT / "scripts" / "local-slurm")
@@ -40,9 +44,8 @@ SLURM = ["--workflow-profile", "workflow/profiles/slurm", "--slurm-status-comman
 
 def _slurm_missing_reason() -> str | None:
     if os.environ.get("AMORGS_SLURM_TESTS") != "1":
-        # Opt-in until the smoke run through the cluster has passed under pytest on the CI machine (it timed
-        # out at 30 min on the loaded development machine; by hand it passed): see the README's cluster section.
-        return "the cluster tests are opt-in: AMORGS_SLURM_TESTS=1 (root, Debian; scripts/local-slurm)"
+        # They install (apt-get) and start system daemons as root: .ci/run turns them on, a developer opts in.
+        return "the cluster tests are opt-in (.ci/run turns them on): AMORGS_SLURM_TESTS=1 (root, Debian; scripts/local-slurm)"
     if shutil.which("sbatch") and shutil.which("slurmctld") and shutil.which("slurmd"):
         return None if os.geteuid() == 0 else "starting the SLURM daemons needs root"
     if os.geteuid() != 0 or not shutil.which("apt-get"):
@@ -213,7 +216,9 @@ def test_a_cancelled_job_and_a_down_node_lose_and_duplicate_no_rows(cluster, mlf
     from mlflow.tracking import MlflowClient
 
     cfg = _interrupt_config()
-    cfg["problems"]["dejong"]["generate"].update(shards=3, starts_per_shard=300)  # ≈ 30–60 s per job
+    # ≈ 10 s of solving per job, so that each job is hit mid-solve: with 300 starts (1.6 s of solving, a 14-s job on
+    # a quiet machine) the test caught a job in the few seconds its MLflow run was open only by luck
+    cfg["problems"]["dejong"]["generate"].update(shards=3, starts_per_shard=2000)
     cfg["mlflow"].update(experiment="amorgs-slurm-faults", tracking_uri=mlflow_server)
     target = ["results/dejong/high_quality.parquet", "--configfile", "config/test.yaml"]
     reference = local_run(tmp_path, cfg, *target)
@@ -250,7 +255,7 @@ def test_a_cancelled_job_and_a_down_node_lose_and_duplicate_no_rows(cluster, mlf
     res = snakemake(wd, *SLURM, *target)
     assert res.returncode == 0, (wd / "snakemake.log").read_text()[-3000:] + res.stdout[-3000:] + res.stderr[-3000:]
     assert_same_tables(wd, reference)
-    assert len(pd.read_parquet(wd / "results" / "dejong" / "solutions" / "alpha=0.200.parquet")) == 900
+    assert len(pd.read_parquet(wd / "results" / "dejong" / "solutions" / "alpha=0.200.parquet")) == 3 * 2000
 
     # the cancelled job's run ended KILLED; every job has a FINISHED run
     exp = client.get_experiment_by_name("amorgs-slurm-faults")
