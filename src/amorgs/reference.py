@@ -189,7 +189,8 @@ def _readme(manifest: dict, dest: Path) -> str:
            f"run at git commit `{manifest['earlier_run']['git_commit']}` ({manifest['earlier_run']['cpu_hours']['total']:.3g} "
            "CPU-hours), kept (`amorgs reference-export --add-arms`)"] if "earlier_run" in manifest else []),
         f"- regenerate: `{manifest['command']}` on the same commit and library, then `amorgs reference-export "
-        f"--config {manifest['config_file']} --dest {dest.as_posix()}`. Everything but CPU timings is "
+        f"--config {manifest['config_file']} --dest {dest.as_posix()}"
+        + (f" --add-arms {' '.join(manifest['arms_run'])}" if "earlier_run" in manifest else "") + "`. Everything but CPU timings is "
         "deterministic (IPOPT iterations, rates, aRT in iterations).",
         f"- every start: `{STARTS_FILE}` (guesses and outcomes); `amorgs reference-certify {dest.as_posix()}` "
         "re-solves a seeded sample of them and reports whether iterations and m_f match exactly.",

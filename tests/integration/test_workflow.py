@@ -138,7 +138,7 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
     if SMOKE_WORKDIR:
         shutil.rmtree(SMOKE_WORKDIR, ignore_errors=True)
     wd = workdir(Path(SMOKE_WORKDIR).parent if SMOKE_WORKDIR else tmp_path, name=Path(SMOKE_WORKDIR).name if SMOKE_WORKDIR else "wf")
-    res = snakemake(wd, "--configfile", "config/smoke.yaml", timeout=900)  # the workflow profile applies itself
+    res = snakemake(wd, "--configfile", "config/smoke.yaml", timeout=1800)  # the workflow profile applies itself; ≈ 6–15 min on 2 cores
     assert res.returncode == 0, res.stdout[-5000:] + res.stderr[-5000:]
 
     check = subprocess.run(
