@@ -319,7 +319,8 @@ def add_arms_to_reference(dest: str | Path, arms, config_file: str | Path, run_d
     ``ablation.samplers``, on the library the reference read — the same manifest SHA-256) need only have
     finished the ablation cells of ``arms``.  Arms the reference already holds and ``arms`` names again are the
     *reproduction check*: their rerun starts must equal the committed ones in every column but the timings
-    (:data:`TIMING_COLUMNS`), else nothing is written.  Writes the merged :data:`STARTS_FILE` (the run's cell
+    (:data:`TIMING_COLUMNS`), else nothing is written; their committed rows stay (with the timings of the run
+    that timed the other arms).  Writes the merged :data:`STARTS_FILE` (the run's cell
     order), the run's config and a manifest of the run that names the earlier one (``earlier_run``: its commit,
     export time, CPU-hours, config SHA-256, arms) and what was rerun (``arms_run``, ``reproduced``: arm → starts
     compared).  ``InputError`` names the file or key that does not fit."""
@@ -363,7 +364,9 @@ def add_arms_to_reference(dest: str | Path, arms, config_file: str | Path, run_d
             raise InputError(f"{run}: the rerun of {arm!r} does not reproduce {dst / STARTS_FILE} — nothing written "
                              f"({str(exc).splitlines()[0]})") from None
         reproduced[arm] = int((new["sampler"] == arm).sum())
-    merged = pd.concat([old[~old["sampler"].isin(arms)], new], ignore_index=True)
+    # the rerun arms keep their committed rows (identical but for timings, which stay those of the run that
+    # timed every other arm): only the arms new to the reference come from this run
+    merged = pd.concat([old, new[~new["sampler"].isin(held)]], ignore_index=True)
     rank = {_relative(p): i for i, p in enumerate(order)}
     merged = merged.iloc[np.argsort([rank.get(c, len(rank)) for c in merged["cell"]], kind="stable")]
     merged = merged.reset_index(drop=True)

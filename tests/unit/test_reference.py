@@ -130,7 +130,7 @@ def test_the_committed_frontier_is_recomputed_from_its_folds_starts_and_the_ship
 
 
 def _run_with_arms(tmp_path, base: Path, arms_from: dict[str, str], tamper: bool = False) -> Path:
-    """A run directory of ``base``'s design with ``reuse_cvae`` added to its samplers, holding only the cell
+    """A run directory of ``base``'s design with ``nearest_alpha_perturbed`` added to its samplers, holding only the cell
     tables of the arms in ``arms_from`` (arm → the committed arm whose starts it copies), and the library
     manifest ``base`` read (a stand-in file whose SHA-256 the copied reference is told)."""
     import json
@@ -140,7 +140,7 @@ def _run_with_arms(tmp_path, base: Path, arms_from: dict[str, str], tamper: bool
 
     run = tmp_path / "run"
     cfg = yaml.safe_load((base / "config.yaml").read_text())
-    cfg["ablation"]["samplers"] = [*cfg["ablation"]["samplers"], "reuse_cvae"]
+    cfg["ablation"]["samplers"] = [*cfg["ablation"]["samplers"], "nearest_alpha_perturbed"]
     (run / "data" / "library" / "cr3bp").mkdir(parents=True)
     (run / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
     manifest = run / "data" / "library" / "cr3bp" / "provenance.json"
@@ -163,7 +163,7 @@ def _run_with_arms(tmp_path, base: Path, arms_from: dict[str, str], tamper: bool
 
 
 def test_add_arms_keeps_the_committed_arms_and_checks_the_rerun_ones(tmp_path):
-    """``reference-export --add-arms``: a run of the fold's design that ran only the cells of the new arm and of
+    """``reference-export --add-arms``: a run of the fold's design that ran only the cells of a new arm and of
     reuse (the check) adds the new arm; reuse must reproduce exactly, else nothing is written."""
     import shutil
 
@@ -173,27 +173,29 @@ def test_add_arms_keeps_the_committed_arms_and_checks_the_rerun_ones(tmp_path):
     from amorgs.frontier import read_run
     from amorgs.reference import add_arms_to_reference
 
+    new = "nearest_alpha_perturbed"  # stands in for a new arm: its cells are copies of reuse's
     base = tmp_path / "sparse-3"
     shutil.copytree(FRONTIER / "sparse-3", base)
     before = pd.read_parquet(base / "starts.parquet")
-    run = _run_with_arms(tmp_path, base, {"nearest_alpha": "nearest_alpha", "reuse_cvae": "nearest_alpha"}, tamper=True)
+    held = list(dict.fromkeys(before["sampler"]))
+    run = _run_with_arms(tmp_path, base, {"nearest_alpha": "nearest_alpha", new: "nearest_alpha"}, tamper=True)
     with pytest.raises(InputError, match="rerun of 'nearest_alpha' does not reproduce"):
-        add_arms_to_reference(base, ["reuse_cvae", "nearest_alpha"], "config.yaml", run)
+        add_arms_to_reference(base, [new, "nearest_alpha"], "config.yaml", run)
     pd.testing.assert_frame_equal(pd.read_parquet(base / "starts.parquet"), before)  # nothing written
 
     shutil.rmtree(run)
-    run = _run_with_arms(tmp_path, base, {"nearest_alpha": "nearest_alpha", "reuse_cvae": "nearest_alpha"})
-    manifest = add_arms_to_reference(base, ["reuse_cvae", "nearest_alpha"], "config.yaml", run)
+    run = _run_with_arms(tmp_path, base, {"nearest_alpha": "nearest_alpha", new: "nearest_alpha"})
+    manifest = add_arms_to_reference(base, [new, "nearest_alpha"], "config.yaml", run)
     assert manifest["reproduced"] == {"nearest_alpha": int((before["sampler"] == "nearest_alpha").sum())}
-    assert manifest["earlier_run"]["arms"] == ["uniform", "amorgs", "continuation"]
+    assert manifest["earlier_run"]["arms"] == [a for a in held if a != "nearest_alpha"]
     after = pd.read_parquet(base / "starts.parquet")
     assert len(after) == len(before) + (before["sampler"] == "nearest_alpha").sum()
-    kept = after[after["sampler"] != "reuse_cvae"].sort_values(["cell", "start"]).reset_index(drop=True)
+    kept = after[after["sampler"] != new].sort_values(["cell", "start"]).reset_index(drop=True)  # timings too
     pd.testing.assert_frame_equal(kept, before.sort_values(["cell", "start"]).reset_index(drop=True))
-    fold = read_run(base)  # the frontier reads it: every cell of the five arms, the manifest verified
-    assert set(fold.cells["sampler"]) == {"uniform", "nearest_alpha", "amorgs", "continuation", "reuse_cvae"}
+    fold = read_run(base)  # the frontier reads it: every cell of every arm, the manifest verified
+    assert set(fold.cells["sampler"]) == {*held, new}
     readme = (base / "README.md").read_text()
-    assert "arms reuse_cvae, nearest_alpha from this run" in readme and "arms uniform, amorgs, continuation from the earlier" in readme
+    assert f"arms {new}, nearest_alpha from this run" in readme and "from the earlier run" in readme
     with pytest.raises(InputError, match="not the design"):
         (run / "config.yaml").write_text((run / "config.yaml").read_text().replace("n_starts: 34", "n_starts: 35"))
-        add_arms_to_reference(base, ["reuse_cvae"], "config.yaml", run)
+        add_arms_to_reference(base, [new], "config.yaml", run)
