@@ -345,12 +345,11 @@ def add_arms_to_reference(dest: str | Path, arms, config_file: str | Path, run_d
                          f"{str(base['library']['manifest_sha256'])[:12]}…)")
 
     order = [p for rule in START_RULES for p in outputs_of(rule, cfg, "table")]
-    cells = {p: pd.read_parquet(run / p) for p in order if (run / p).is_file()}
-    cells = {p: df for p, df in cells.items() if len(df) and df["sampler"].iloc[0] in arms}
-    wanted = [p for p in order if any(f"/{arm}.parquet" in p for arm in arms)]
-    missing = [p for p in wanted if p not in cells]
+    wanted = [p for p in order if Path(p).stem in arms]  # a cell table is named after its arm
+    missing = [p for p in wanted if not (run / p).is_file()]
     if missing:
         raise InputError(f"{run / missing[0]}: output missing ({len(missing)} cells of {list(arms)}) — run them first")
+    cells = {p: pd.read_parquet(run / p) for p in wanted}  # only the added arms' cells: other arms' tables stay unread
     new = starts_table({_relative(p): df for p, df in cells.items()})
     reproduced = {}
     for arm in (a for a in arms if a in held):
