@@ -1,10 +1,10 @@
 """Benchmark of the CR3BP local solver: verified converged solutions per core-hour.
 
 Runs ``--starts`` uniform starts (spec §6) at each α on ONE core (one worker process, solves in series),
-with the default solver and the library's (``config/library.yaml``) unless a variant is chosen, and prints and writes the table to
+with the default solver options unless a variant is chosen, and prints and writes the table to
 ``docs/performance.md`` (section between the BENCHMARK markers).  Reproduce with::
 
-    python benchmarks/solve.py                      # the default and library solvers, 50 starts × α ∈ {0.1, 0.5, 1.0}
+    python benchmarks/solve.py                      # the default solver, 50 starts × α ∈ {0.1, 0.5, 1.0}
     python benchmarks/solve.py --variants --starts 12   # the comparison of transcription/solver variants
     python benchmarks/solve.py --scaling            # 1 → 2 worker processes
     python benchmarks/solve.py --compare --jobs 2   # previous default vs new default, same seed and starts
@@ -12,7 +12,6 @@ with the default solver and the library's (``config/library.yaml``) unless a var
     python benchmarks/solve.py --ipopt-screen --starts 10 --alphas 1.0   # IPOPT options, one at a time
     python benchmarks/solve.py --quasi-newton --alphas 0.1 1.0 --max-wall-s 600   # L-BFGS 30 vs SR1, history 6
     python benchmarks/solve.py --coast --starts 200 --alphas 0.1 1.0 --jobs 2 --max-wall-s 600   # issue 22
-    python benchmarks/solve.py --two-grid --starts 200 --alphas 0.1 1.0 --jobs 2 --max-wall-s 600   # issue 22
 
 ``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
 the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
@@ -63,13 +62,6 @@ PREVIOUS = IpoptOptions(
 )
 
 
-def _library_solver() -> IpoptOptions:
-    """The solver that grows the library: ``problems.cr3bp.solver`` of ``config/library.yaml``."""
-    from amorgs.config import load_config
-
-    return load_config(ROOT / "config" / "library.yaml").problems.cr3bp.solver
-
-
 def _with(base: IpoptOptions, **changes) -> IpoptOptions:
     """``base`` with ``changes``; ``transcription=`` takes a dict of changes to the nested options."""
     if "transcription" in changes:
@@ -77,10 +69,6 @@ def _with(base: IpoptOptions, **changes) -> IpoptOptions:
     return dataclasses.replace(base, **changes)
 
 
-#: No flag: the default solver (warm starts: design, the ablation's arms, every config but the library's) and the
-#: library's (cold uniform starts; what grows the data), each on the same starts.
-DEFAULT_SOLVERS = {"default solver (warm starts)": IpoptOptions(),
-                   "library solver (config/library.yaml, cold starts)": _library_solver()}
 #: ``--variants``: the previous default, each issue-9 change alone on top of it, and the new default ({}).
 VARIANTS = {
     "previous default (-O2, RK8 24/seg ×√(0.3/α) below 0.3 + 320/coast, no abort)": PREVIOUS,
@@ -137,20 +125,9 @@ COAST = {
     "interpolated coasts, L-BFGS history 30": _with(_RK8_COASTS, transcription={"coast": "interpolant"}),
     "interpolated coasts, L-BFGS history 6": _with(_RK8_COASTS, lbfgs_memory=6, transcription={"coast": "interpolant"}),
 }
-#: ``--two-grid``: the library's generation-2 solver (interpolated coasts, L-BFGS history 6) vs the same solver
-#: solving first on a coarse grid of 14 RK8 steps per thrust segment, then polishing on the full grid (L-BFGS
-#: history 30, ≤ 150 iterations) — the library's generation 3 (issue 22).
-TWO_GRID_DEFAULT = "one grid, L-BFGS history 6 (library generation 2)"
-_LIBRARY_GEN2 = _with(IpoptOptions(), lbfgs_memory=6)
-TWO_GRID = {
-    TWO_GRID_DEFAULT: _LIBRARY_GEN2,
-    "two-grid: 14 steps/segment, then the full grid (polish history 30, ≤ 150 iterations)":
-        _with(_LIBRARY_GEN2, coarse_steps_per_segment=14, polish_max_iter=150, polish_lbfgs_memory=30),
-}
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.
-PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT), "coast": (COAST, COAST_DEFAULT),
-          "two_grid": (TWO_GRID, TWO_GRID_DEFAULT)}
+PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT), "coast": (COAST, COAST_DEFAULT)}
 TOF_BAND_TU = 6.3
 BOOTSTRAP = 10_000
 
@@ -320,8 +297,6 @@ def main() -> None:
                     help="default L-BFGS vs the SR1 update and a short L-BFGS history, same starts")
     ap.add_argument("--coast", action="store_true",
                     help="the default vs interpolated coasts + extended L-BFGS system (issue 22), same starts")
-    ap.add_argument("--two-grid", action="store_true",
-                    help="the library's one-grid solver vs the two-grid solve (coarse grid, then polish), same starts")
     ap.add_argument("--max-wall-s", type=float, default=None,
                     help="raise the wall-time safety net (on a loaded machine it would cut solves short)")
     ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
@@ -343,10 +318,9 @@ def main() -> None:
         write_section("scaling", text)
         return
 
-    paired = ("steps" if args.steps else "quasi_newton" if args.quasi_newton else "coast" if args.coast
-              else "two_grid" if args.two_grid else None)
+    paired = "steps" if args.steps else "quasi_newton" if args.quasi_newton else "coast" if args.coast else None
     variants = (VARIANTS if args.variants else COMPARE if args.compare else PAIRED[paired][0] if paired
-                else IPOPT_SCREEN if args.ipopt_screen else DEFAULT_SOLVERS)
+                else IPOPT_SCREEN if args.ipopt_screen else {"default": IpoptOptions()})
     if paired:  # α-major, so that the runs compared on the same starts run at about the same time
         cells = [(label, opts, alpha) for alpha in args.alphas for label, opts in variants.items()]
     else:
@@ -368,7 +342,7 @@ def main() -> None:
     rows, caps = [], []
     for df in raw:
         rows.append({"variant": df.variant.iloc[0], **summarize(df)} if len(variants) > 1 else summarize(df))
-        caps += [{"variant": df.variant.iloc[0], **row} if len(variants) > 1 else row for row in cap_table(df)]
+        caps += cap_table(df)
     name = ("variants" if args.variants else "compare" if args.compare else "ipopt_screen" if args.ipopt_screen
             else paired or "default")
     text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; one worker process per cell.\n\n" + markdown(rows)

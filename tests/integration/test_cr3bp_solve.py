@@ -141,35 +141,3 @@ def test_solution_lies_inside_the_box_and_is_a_valid_warm_start(problem, solver,
     assert np.all(x >= problem.lower) and np.all(x <= problem.upper)
     again = solver.solve(x, 1.0)  # warm start from the stored solution converges at once
     assert again.converged and again.iterations <= 30
-
-
-def test_two_grid_solve_polishes_a_coarse_solution_on_the_full_grid(problem, solver):
-    """Coarse grid first, then the full grid from its solution: the record is the polish's verdict with both
-    stages' iterations and times; the result is a solution of the full grid (what one-grid solves return)."""
-    two_grid = problem.make_local_solver(IpoptOptions(max_iter=400, coarse_steps_per_segment=10))
-    coarse, polish = two_grid._stages
-    guesses = problem.sample_uniform(1.0, 8, np.random.default_rng(0))
-    for x0 in guesses:
-        first = coarse.solve(x0, 1.0)
-        if first.solver_success:
-            break
-    else:
-        pytest.fail("no coarse success in 8 uniform starts at α = 1.0")
-    record = two_grid.solve(x0, 1.0)
-    second = polish.solve(first.x, 1.0)
-    assert record.status == second.status and record.converged == second.converged
-    assert record.iterations == first.iterations + second.iterations
-    np.testing.assert_array_equal(record.x, second.x)
-    assert record.cpu_s > 0 and record.wall_s > 0
-    assert record.converged and record.verify_defect <= 1e-5
-    # the solution closes on the full grid to the feasibility tolerance, not just on the coarse one
-    assert np.max(np.abs(solver.transcription(1.0).match_defect(record.x, 1.0))) <= 1e-8
-    assert two_grid.transcription(1.0).options.steps_per_segment == 24
-    assert coarse.transcription(1.0).options.steps_per_segment == 10
-
-
-def test_two_grid_coarse_failure_is_the_record(problem):
-    two_grid = problem.make_local_solver(IpoptOptions(max_iter=2, coarse_steps_per_segment=10, compile="none"))
-    record = two_grid.solve(problem.sample_uniform(0.3, 1, np.random.default_rng(1))[0], 0.3)
-    assert record.status == "Maximum_Iterations_Exceeded" and record.iterations == 2
-    assert not record.converged and math.isnan(record.verify_defect)

@@ -80,9 +80,6 @@ def test_hash_changes_with_any_field():
         IpoptOptions(lbfgs_aug_solver="extended"),
         IpoptOptions(transcription=TranscriptionOptions(coast="rk8")),
         IpoptOptions(lbfgs_memory=6),
-        IpoptOptions(coarse_steps_per_segment=12),
-        IpoptOptions(coarse_steps_per_segment=12, polish_max_iter=100),
-        IpoptOptions(coarse_steps_per_segment=12, polish_lbfgs_memory=6),
     ]
     assert len({base.digest(), *(o.digest() for o in changed)}) == 1 + len(changed)
     assert BfgsOptions(maxiter=5).digest() != BfgsOptions().digest()
@@ -197,21 +194,3 @@ def test_usable_as_config_model_field_with_a_documented_schema():
     ipopt = schema["$defs"]["IpoptOptions"]["properties"]
     assert ipopt["max_wall_s"]["default"] == IpoptOptions().max_wall_s and "(s)" in ipopt["max_wall_s"]["description"]
     assert ipopt["max_iter"]["minimum"] == 1 and math.isclose(ipopt["tol"]["default"], 1e-6)
-
-
-def test_two_grid_fields_are_hashed_only_when_the_two_grid_solve_is_on():
-    assert IpoptOptions(polish_max_iter=7, polish_lbfgs_memory=3).digest() == HASH_DEFAULT_CONFIG
-    assert "coarse_steps_per_segment" not in IpoptOptions().hash_dict()
-    assert IpoptOptions(coarse_steps_per_segment=12).hash_dict()["polish_max_iter"] == 150
-
-
-def test_two_grid_stages_are_one_grid_solves_of_the_right_grid():
-    opts = IpoptOptions(lbfgs_memory=6, coarse_steps_per_segment=12, polish_max_iter=80, polish_lbfgs_memory=30,
-                        stall_window=200)
-    coarse, polish = opts.coarse_stage(), opts.polish_stage()
-    assert coarse.coarse_steps_per_segment == polish.coarse_steps_per_segment == 0
-    for alpha in (0.1, 0.3, 1.0):  # the coarse grid is the same at every α; the polish keeps the α law
-        assert coarse.transcription.for_alpha(alpha).steps_per_segment == 12
-        assert polish.transcription.for_alpha(alpha) == opts.transcription.for_alpha(alpha)
-    assert (coarse.lbfgs_memory, coarse.max_iter, coarse.stall_window) == (6, 1000, 200)
-    assert (polish.lbfgs_memory, polish.max_iter) == (30, 80)

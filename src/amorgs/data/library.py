@@ -300,14 +300,11 @@ def _per_alpha(entries: list[dict]) -> list[dict]:
 GENERATIONS = {
     1: "RK8 coasts, integrated at every evaluation (every solve before issue 22)",
     2: "coasts read off the interpolated ballistic flow (issue 22)",
-    3: "two-grid solve: a coarse grid first, polished on the full grid (issue 22)",
 }
 
 
 def solver_generation(solver) -> int:
-    """The generation a solver's rows belong to: 3 with the two-grid solve, 2 with interpolated coasts, else 1."""
-    if getattr(solver, "coarse_steps_per_segment", 0):
-        return 3
+    """The generation a solver's rows belong to: 2 with interpolated coasts, 1 otherwise."""
     return 2 if getattr(getattr(solver, "transcription", None), "coast", None) == "interpolant" else 1
 
 

@@ -145,30 +145,20 @@ class IpoptSolver:
         self.problem = problem
         self.options = options
         self.options_hash = options.digest()
-        self._build_s = 0.0
-        # Two-grid solve (options.coarse_steps_per_segment > 0): one solver per stage, this one dispatches.
-        self._stages: tuple[IpoptSolver, IpoptSolver] | None = None
-        if options.coarse_steps_per_segment:
-            self._stages = (IpoptSolver(problem, options.coarse_stage()), IpoptSolver(problem, options.polish_stage()))
+        self.build_s = 0.0
         self._built: dict[TranscriptionOptions, tuple] = {}
         self._monitors: dict[TranscriptionOptions, StallMonitor | None] = {}
         self._jit_dirs: list = []  # JIT builds live as long as the solver
         self.last_trace: list[float] = []  # max|g| per IPOPT iteration of the latest solve (stall abort on)
         self._ipopt = ipopt_settings(options)
 
-    @property
-    def build_s(self) -> float:
-        """Seconds spent building (or loading) NLPs so far, every stage included."""
-        return self._build_s + sum(stage.build_s for stage in self._stages or ())
-
     def build(self, alpha: float) -> None:
-        """Build (or load from the compile cache) the NLP(s) that solve at ``alpha`` now, not at the first solve."""
-        for solver in self._stages or (self,):
-            solver._nlp(alpha)
+        """Build (or load from the compile cache) the NLP that solves at ``alpha`` now, not at the first solve."""
+        self._nlp(alpha)
 
     def transcription(self, alpha: float) -> Transcription:
-        """The transcription (integration grid resolved for α) whose solutions this solver returns at this α."""
-        return self._stages[1].transcription(alpha) if self._stages else self._nlp(alpha)[0]
+        """The transcription (integration grid resolved for α) that solves at this α."""
+        return self._nlp(alpha)[0]
 
     def _nlp(self, alpha: float) -> tuple:
         tr_opts = self.options.transcription.for_alpha(alpha)
@@ -190,30 +180,11 @@ class IpoptSolver:
                 self._jit_dirs.append(jit_dir)
             self._monitors[tr_opts] = monitor
             self._built[tr_opts] = (tr, nlpsol, *tr.bounds())
-            self._build_s += time.perf_counter() - t0
+            self.build_s += time.perf_counter() - t0
         return self._built[tr_opts]
 
     def solve(self, x0: np.ndarray, alpha: float) -> SolveRecord:
-        """Solve from a stored-layout guess; invalid input raises ``ValueError``, numerical failure never does.
-
-        A two-grid solver solves on the coarse grid, then polishes a coarse success (IPOPT success and defect
-        ≤ ``feasibility_tol`` on the coarse grid; not re-propagated) on the full grid: the record is the
-        polish's, with the iterations and times of both stages summed.  A coarse failure is the record."""
-        if self._stages is None:
-            return self._solve_one(x0, alpha, verify=True)
-        coarse, polish = self._stages
-        first = coarse._solve_one(x0, alpha, verify=False)
-        self.last_trace = coarse.last_trace
-        if not first.solver_success:
-            return first
-        final = polish._solve_one(first.x, alpha, verify=True)
-        final.iterations += first.iterations
-        final.wall_s += first.wall_s
-        final.cpu_s += first.cpu_s
-        return final
-
-    def _solve_one(self, x0: np.ndarray, alpha: float, verify: bool) -> SolveRecord:
-        """One IPOPT solve on this solver's grid; ``verify`` re-propagates a solver success (the verdict)."""
+        """Solve from a stored-layout guess; invalid input raises ``ValueError``, numerical failure never does."""
         p = self.problem
         alpha = check_alpha(alpha, p.alpha_range, p.name)
         x0 = p.check_guess(x0)
@@ -240,7 +211,7 @@ class IpoptSolver:
         defect = float(np.max(np.abs(np.asarray(sol["g"]).ravel()))) if np.all(np.isfinite(w)) else math.inf
         x = tr.to_stored(w)
         solver_success = status in IPOPT_SUCCESS and defect <= self.options.feasibility_tol
-        verify = p.verify_defect(x, alpha) if solver_success and verify else math.nan
+        verify = p.verify_defect(x, alpha) if solver_success else math.nan
         converged = bool(solver_success and verify <= self.options.verify_tol)
         return SolveRecord(
             status=status,

@@ -174,39 +174,14 @@ class IpoptOptions(_Options):
     ))] = dataclasses.field(default_factory=dict)
     transcription: Annotated[TranscriptionOptions, Field(description=(
         "integration and layout of the transcription"))] = dataclasses.field(default_factory=TranscriptionOptions)
-    coarse_steps_per_segment: Annotated[int, Field(ge=0, description=(
-        "two-grid solve (issue 22): > 0 first solves on a coarse grid of this many RK8 steps per thrust segment "
-        "(at every α; coasts as in transcription), then polishes a coarse success on the full grid "
-        "(transcription) from the coarse solution; the record's iterations and times are the two stages' sums "
-        "and its verdict is the polish's. 0: one grid. ≈ 1.7× the verified solutions per core-hour from "
-        "uniform starts (docs/performance.md); cold starts only (the library config)"))] = 0
-    polish_max_iter: Annotated[int, Field(ge=1, description=(
-        "two-grid solve: IPOPT iteration cap of the polish on the full grid (iterations)"))] = 150
-    polish_lbfgs_memory: Annotated[int, Field(ge=1, description=(
-        "two-grid solve: L-BFGS history of the polish (a warm start: 30 re-converges best near a solution)"))] = 30
 
     def hash_dict(self) -> dict[str, Any]:
-        """:meth:`to_dict` as hashed: ``lbfgs_aug_solver`` at IPOPT's own default and the two-grid fields when it
-        is off are left out, so options from before those fields existed keep their ``options_hash``."""
+        """:meth:`to_dict` as hashed: ``lbfgs_aug_solver`` at IPOPT's own default is left out, so options from
+        before the field existed keep their ``options_hash``."""
         d = super().hash_dict()
         if d["lbfgs_aug_solver"] == "sherman-morrison":
             del d["lbfgs_aug_solver"]
-        if not self.coarse_steps_per_segment:
-            for key in ("coarse_steps_per_segment", "polish_max_iter", "polish_lbfgs_memory"):
-                del d[key]
         return d
-
-    def coarse_stage(self) -> IpoptOptions:
-        """The options of a two-grid solve's first stage: ``coarse_steps_per_segment`` RK8 steps per thrust
-        segment at every α, everything else as here."""
-        grid = dataclasses.replace(self.transcription, steps_per_segment=self.coarse_steps_per_segment,
-                                   step_scaling_alpha=0.0, scale_down=False, min_steps_per_segment=1)
-        return dataclasses.replace(self, coarse_steps_per_segment=0, transcription=grid)
-
-    def polish_stage(self) -> IpoptOptions:
-        """The options of a two-grid solve's polish: the full grid, ``polish_max_iter``, ``polish_lbfgs_memory``."""
-        return dataclasses.replace(self, coarse_steps_per_segment=0, max_iter=self.polish_max_iter,
-                                   lbfgs_memory=self.polish_lbfgs_memory)
 
     def digest(self) -> str:
         """Short stable hash of :meth:`hash_dict` (stored in every row as ``options_hash``)."""
