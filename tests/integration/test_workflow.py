@@ -449,6 +449,7 @@ def _runs(wd: Path, experiment: str) -> dict[str, list]:
 def test_plain_snakemake_runs_with_the_profile_and_a_lost_store_is_reported(tmp_path):
     """`snakemake` alone (no --profile, no --cores) runs; outputs are group-readable; a deleted store is named."""
     cfg = _interrupt_config()
+    cfg["problems"]["dejong"]["generate"]["shards"] = 1  # every rule of the config once: 4 jobs (3 shards: 6)
     wd = workdir(tmp_path, cfg)
     old = os.umask(0o022)
     try:
