@@ -45,11 +45,11 @@ def test_output_templates_keep_the_wildcards():
 
 def test_job_spec_round_trip_and_a_bad_job_is_one_clear_error():
     cfg = load("smoke")
-    w = {"problem": "cr3bp", "alpha": "0.150", "shard": "0"}
+    w = {"problem": "cr3bp", "alpha": "0.850", "shard": "0"}
     spec = json.loads(steps.job_spec("generate", cfg, w, {}, {"table": "x.parquet"}, 2))
     assert spec["rule"] == "generate" and spec["wildcards"] == w and spec["threads"] == 2
     assert spec["settings"]["solver"]["max_iter"] == cfg.problems.cr3bp.solver.max_iter
-    assert spec["settings"]["alpha"] == 0.15
+    assert spec["settings"]["alpha"] == 0.85
     with pytest.raises(InputError, match="not JSON"):
         steps.run_job("{")
     with pytest.raises(InputError, match="lacks"):
