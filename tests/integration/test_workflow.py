@@ -129,6 +129,7 @@ SMOKE_WORKDIR = os.environ.get("AMORGS_SMOKE_WORKDIR")
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_smoke_workflow_tracks_every_job(tmp_path):
     from mlflow.tracking import MlflowClient
 
@@ -337,6 +338,7 @@ def test_a_changed_setting_reruns_exactly_the_jobs_it_reaches(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 def test_killed_run_resumes_without_losing_or_duplicating_rows(tmp_path):
     from mlflow.tracking import MlflowClient
 
@@ -379,6 +381,7 @@ def test_killed_run_resumes_without_losing_or_duplicating_rows(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
 def test_kill_9_of_snakemake_leaves_no_job_or_solver_and_the_rerun_one_finished_run_per_job(tmp_path):
     """`kill -9` of Snakemake alone (not its process group) used to leave the job and its solver worker
