@@ -1,6 +1,7 @@
 """The ``amorgs`` tools around the workflow (the workflow's own steps are :mod:`amorgs.steps`).
 
 ``library-export`` (check finished library-config shards and consolidate them into ``data/library``),
+``library-compact`` (one compact file per (α, generation): the same rows, fewer bytes),
 ``library-grow`` (batches of library generation, each exported), ``models-export`` (ship a run's checkpoints),
 ``design`` (N good transfers at one α), ``boundary-conditions`` (recompute or check the resource), ``ui``
 (the MLflow UI on ``results/mlflow``), ``frontier-plan`` and ``frontier`` (the frontier study's fold configs,
@@ -26,6 +27,7 @@ from amorgs.problems import PROBLEMS
 EXAMPLES = {
     "library-export": "amorgs library-export --solutions-dir results/library-grow/results/cr3bp/solutions "
     "--library-dir data/library",
+    "library-compact": "amorgs library-compact --library-dir data/library   # then commit data/library",
     "models-export": "amorgs models-export --models-dir results/cr3bp/models --dest data/models/cr3bp",
     "boundary-conditions": "amorgs boundary-conditions --check     # recompute and compare with the stored resource",
     "ui": "amorgs ui --port 5000     # then browse http://127.0.0.1:5000",
@@ -40,6 +42,18 @@ EXAMPLES = {
     "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
     "reference-certify": "amorgs reference-certify reference/frontier/sparse-3 --sample 20 --seed 0   # exit 1: a re-solve differs",
 }
+
+
+def cmd_library_compact(args: argparse.Namespace) -> None:
+    from amorgs.data.library import compact_library
+
+    summary = compact_library(args.library_dir, args.problem)
+    before, after = summary["before"], summary["after"]
+    if not summary["files_rewritten"]:
+        print(f"{args.library_dir}/{args.problem}: already compact ({before['files']} files, {before['bytes'] / 2**20:.1f} MiB)")
+        return
+    print(f"{args.library_dir}/{args.problem}: {before['files']} files, {before['bytes'] / 2**20:.1f} MiB -> "
+          f"{after['files']} files, {after['bytes'] / 2**20:.1f} MiB (same rows, checked bit for bit)")
 
 
 def cmd_library_export(args: argparse.Namespace) -> None:
@@ -256,6 +270,15 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", default="config/library.yaml",
                    help="the config that generated them; it must be the library's (same seed, starts, solver options)")
     p.set_defaults(func=cmd_library_export)
+
+    p = sub.add_parser("library-compact", help="rewrite the library as one compact file per (α, generation)",
+                       description="Merge each α's files of one solver generation into one Parquet file without the "
+                                   "guess columns (the seeded draw reproduces them): the same rows, checked bit for "
+                                   "bit, in fewer bytes; the manifest keeps where every shard came from. Run it on a "
+                                   "committed library (git checkout undoes an interrupted run).")
+    p.add_argument("--problem", default="cr3bp", choices=PROBLEMS, help="problem whose library is compacted")
+    p.add_argument("--library-dir", default="data/library", help="library root (data/library)")
+    p.set_defaults(func=cmd_library_compact)
 
     p = sub.add_parser("models-export", help="ship a workflow run's CR3BP checkpoints in the repository (for design)")
     p.add_argument("--models-dir", default="results/cr3bp/models", help="the train step's checkpoints")

@@ -21,6 +21,7 @@ from config_files import mapping
 from amorgs.config import load_config
 from amorgs.data.library import (
     CLIP_TOLERANCE,
+    compact_library,
     export_library,
     library_files,
     manifest_identity,
@@ -489,3 +490,47 @@ def test_the_shipped_library_config_is_the_committed_librarys(tmp_path):
     assert res.returncode == 0, res.stderr
     assert "nothing new: the 1 shard(s)" in res.stdout and "identical" in res.stdout
     assert {p: p.read_bytes() for p in (lib / "cr3bp").rglob("*") if p.is_file()} == before
+
+
+def test_compaction_keeps_every_row_bit_for_bit_and_exports_still_find_held_shards(tmp_path):
+    """Two exports (two files) plus a file stored the generation-1 way (guess columns on disk) become one compact
+    file: the same table read back, the manifest's totals and shard provenance kept, a second compaction a
+    no-op, and a re-export of the same shards finds them held and identical."""
+    import pyarrow.parquet as pq
+
+    from amorgs.data.library import restore_seeded_guesses, sha256_file, verify_library
+    from amorgs.data.io import write_json
+
+    solutions = real_shards(tmp_path, n=3)
+    lib = tmp_path / "library"
+    first, second, third = sorted(solutions.glob("alpha=*/shard-*.parquet"))
+    for i, shard in enumerate((first, second, third)):  # one export per shard: three files
+        one = tmp_path / f"batch{i}" / shard.parent.name
+        one.mkdir(parents=True)
+        shutil.copy(shard, one / shard.name)
+        export_library(one.parent, lib, "cr3bp", CFG, CONFIG)
+    manifest = read_manifest(lib, "cr3bp")
+    root = lib / "cr3bp"
+    legacy = manifest["files"][0]  # rewrite one file as generation 1 stored it: guesses on disk
+    path = root / legacy["file"]
+    restore_seeded_guesses(pd.read_parquet(path), "cr3bp").to_parquet(path, index=False)
+    legacy.update(sha256=sha256_file(path), bytes=path.stat().st_size)
+    del legacy["guesses"]
+    write_json(manifest, root / "provenance.json")
+    before = read_library(lib, "cr3bp", "0.500")
+    totals = {k: manifest["totals"][k] for k in ("rows", "converged", "shards")}
+
+    summary = compact_library(lib, "cr3bp")
+    assert summary["before"]["files"] == 3 and summary["after"]["files"] == 1
+    assert summary["after"]["bytes"] < summary["before"]["bytes"]
+    verify_library(lib, "cr3bp")  # every file listed, hashes right, nothing left over
+    (path,) = library_files(lib, "cr3bp", "0.500")
+    assert not [c for c in pq.ParquetFile(path).schema_arrow.names if c.startswith("guess_")]
+    pd.testing.assert_frame_equal(read_library(lib, "cr3bp", "0.500"), before, check_exact=True)
+    manifest = read_manifest(lib, "cr3bp")
+    assert {k: manifest["totals"][k] for k in ("rows", "converged", "shards")} == totals
+    (entry,) = manifest["files"]
+    assert len(entry["sources"]) == 3 and sorted(k for s in entry["sources"] for k in s["shards"]) == entry["shards"]
+    assert manifest["compactions"][-1]["files_before"] == 3
+    assert compact_library(lib, "cr3bp")["files_rewritten"] == 0
+    assert export_library(solutions, lib, "cr3bp", CFG, CONFIG)["held_identical"] == 3

@@ -7,7 +7,8 @@ Layout (committed)::
 
 Every file consolidates the generate shards of one α that one export found (a ``shard`` column keeps
 them apart); its manifest entry records the shard indices, row count, converged count, SHA-256, size,
-solver-option hashes, generation, CPU-hours, export time and git commit.
+solver-option hashes, generation, CPU-hours, export time and git commit.  :func:`compact_library`
+(``amorgs library-compact``) merges them into one file per (α, generation), the same rows in fewer bytes.
 
 *Generations* (:data:`GENERATIONS`): when the solver that fills the library changes in substance (issue 22:
 interpolated coasts), a new generation starts beside the old one.  Every file entry names its generation
@@ -462,8 +463,6 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
         added_rows += len(df)
     files.sort(key=lambda e: e["file"])
     manifest["exports"].append({"created": now, "git_commit": commit, "files_added": len(new), "rows_added": added_rows})
-    total_bytes = sum(e["bytes"] for e in files)
-    rows = sum(e["rows"] for e in files)
     manifest.update({
         "problem": problem,
         "config_file": str(config_file),
@@ -473,6 +472,17 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
         "seed": identity["seed"],
         "starts_per_shard": identity["starts_per_shard"],
         "identity": identity,
+        **_summaries(files),
+    })
+    write_json(manifest, root / MANIFEST)
+    return {"files_added": len(new), "rows_added": added_rows, "held_identical": identical, **manifest["totals"]}
+
+
+def _summaries(files: list[dict]) -> dict:
+    """The manifest's derived keys over its file entries: ``totals``, ``generations`` and ``per_alpha``."""
+    total_bytes = sum(e["bytes"] for e in files)
+    rows = sum(e["rows"] for e in files)
+    return {
         "totals": {
             "files": len(files),
             "shards": sum(len(e["shards"]) for e in files),
@@ -484,9 +494,84 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
         },
         "generations": _generations(files),
         "per_alpha": _per_alpha(files),
-    })
+    }
+
+
+def compact_library(library_dir: str | Path, problem: str) -> dict:
+    """Rewrite the library as one compact file per (α, generation): the same rows, fewer bytes.
+
+    Each export adds one file per α (≈ 100 rows), and a Parquet file's footer (≈ 37 KB for 80 columns) is a
+    third of such a file; files written before compact storage also hold the 64 ``guess_*`` columns.  Per
+    (α, generation) with more than one file or any stored guesses, every file is read through the manifest
+    (hash and rows checked), the rows are merged in (shard, start) order, the guesses are checked bit for bit
+    against the seeded draw and dropped (:func:`drop_seeded_guesses`), and the merged table is written as
+    ``alpha={label}/shards-{first}-{last}.parquet`` — after checking that reading it back gives exactly the
+    rows read before.  Its manifest entry unions the merged entries (shards, rows, converged, option hashes,
+    CPU-hours; ``sources``: each merged file's name, shards, export time and commit), and the manifest gains
+    a ``compactions`` record.  Readers see the same table for every α before and after (:func:`read_library`
+    merges files in (shard, start) order).  Not atomic across files: run it on a committed library (an
+    interrupted compaction is undone with ``git checkout``).  Returns bytes and files before and after.
+    """
+    root = Path(library_dir) / problem
+    manifest = verify_library(library_dir, problem)
+    if manifest is None:
+        raise InputError(f"{root}: no library to compact (no {MANIFEST})")
+    files = manifest["files"]
+    groups: dict[tuple[str, int], list[dict]] = {}
+    for entry in files:
+        groups.setdefault((entry["file"].split("/")[0], entry.get("generation", 1)), []).append(entry)
+    now = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    kept, written, replaced = [], [], []
+    for (label_dir, generation), entries in sorted(groups.items()):
+        if len(entries) == 1 and entries[0].get("guesses") == GUESSES_SEEDED:
+            kept.append(entries[0])
+            continue
+        df = merge_shards(read_library_file(root / e["file"], library_dir, problem, manifest) for e in entries)
+        shards = sorted(k for e in entries for k in e["shards"])
+        if sorted(df["shard"].unique().tolist()) != sorted(set(shards)) or len(shards) != len(set(shards)):
+            raise InputError(f"{root / label_dir}: the files' rows and the manifest's shard lists disagree")
+        rel = f"{label_dir}/shards-{shards[0]:05d}-{shards[-1]:05d}.parquet"
+        tmp = root / f"{rel}.compact"
+        write_parquet(drop_seeded_guesses(df, problem, str(root / label_dir)), tmp)
+        back = restore_seeded_guesses(read_table(tmp), problem)
+        pd.testing.assert_frame_equal(back, df, check_exact=True)  # the same rows, bit for bit
+        conv = df[df["converged"]]
+        written.append((tmp, root / rel))
+        replaced.extend(root / e["file"] for e in entries)
+        kept.append({
+            "file": rel,
+            "alpha": entries[0]["alpha"],
+            "shards": shards,
+            "rows": int(len(df)),
+            "converged": int(len(conv)),
+            "best_objective": float(conv["objective"].min()) if len(conv) else None,
+            "sha256": sha256_file(tmp),
+            "bytes": tmp.stat().st_size,
+            "options_hashes": sorted({h for e in entries for h in e["options_hashes"]}),
+            "guesses": GUESSES_SEEDED,
+            "generation": generation,
+            "cpu_hours": sum(e["cpu_hours"] for e in entries),
+            "exported": max(e["exported"] for e in entries),
+            "git_commit": max(entries, key=lambda e: e["exported"]).get("git_commit", "unknown"),
+            "compacted": now,
+            "sources": [{k: e[k] for k in ("file", "shards", "exported", "git_commit") if k in e} for e in entries],
+        })
+    before = {"files": len(files), "bytes": sum(e["bytes"] for e in files)}
+    if not written:
+        return {"before": before, "after": before, "files_rewritten": 0}
+    for path in replaced:
+        path.unlink()
+    for tmp, final in written:
+        tmp.replace(final)
+    kept.sort(key=lambda e: e["file"])
+    after = {"files": len(kept), "bytes": sum(e["bytes"] for e in kept)}
+    manifest["files"] = kept
+    manifest.setdefault("compactions", []).append({"created": now, "git_commit": git_commit(),
+                                                   "files_before": before["files"], "bytes_before": before["bytes"],
+                                                   "files_after": after["files"], "bytes_after": after["bytes"]})
+    manifest.update(_summaries(kept))
     write_json(manifest, root / MANIFEST)
-    return {"files_added": len(new), "rows_added": added_rows, "held_identical": identical, **manifest["totals"]}
+    return {"before": before, "after": after, "files_rewritten": len(replaced)}
 
 
 def held_shards(library_dir: str | Path, problem: str) -> set[tuple[str, int]]:
