@@ -166,7 +166,7 @@ def cmd_ui(args: argparse.Namespace) -> None:
         raise SystemExit(f"no MLflow store at {tracking.STORE_DIR / tracking.DB_NAME}: run the workflow first")
     cmd = tracking.ui_command(host=args.host, port=args.port)
     print(" ".join(cmd), flush=True)
-    os.execv(cmd[0], cmd)
+    os.execve(cmd[0], cmd, {**tracking.SERVER_ENV, **os.environ})
 
 
 def cmd_check_outputs(args: argparse.Namespace) -> None:

@@ -612,6 +612,12 @@ def tracked_jobs(store_dir: str | Path = STORE_DIR) -> dict:
     return {"parent_status": parent.info.status, "jobs": jobs}
 
 
+#: Environment defaults of the MLflow UI this project starts (:func:`ui_command`): MLflow's job-execution engine
+#: (GenAI jobs; nothing here submits any) stays off — 7 processes instead of 15 and ≈ 5 CPU-s less at start.
+#: A variable already set in the environment wins.
+SERVER_ENV = {"MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}
+
+
 def ui_command(store_dir: str | Path = STORE_DIR, host: str = "127.0.0.1", port: int = 5000) -> list[str]:
-    """The command line of the MLflow UI on this store."""
+    """The command line of the MLflow UI on this store (run it with :data:`SERVER_ENV` under the environment)."""
     return [sys.executable, "-m", "mlflow", "ui", "--backend-store-uri", tracking_uri(store_dir), "--host", host, "--port", str(port)]

@@ -58,7 +58,7 @@ def ui(tracked_store):
     port = free_port()
     log = tracked_store["root"] / "ui.log"
     cmd = tracking.ui_command(tracked_store["store"], port=port)
-    with serving(cmd, port, tracked_store["root"], log, ENV, "the MLflow UI") as url:
+    with serving(cmd, port, tracked_store["root"], log, {**tracking.SERVER_ENV, **ENV}, "the MLflow UI") as url:
         yield url
 
 

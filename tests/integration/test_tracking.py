@@ -215,7 +215,7 @@ def mlflow_server(tmp_path):
     workdir.mkdir()
     cmd = [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port), "--workers", "1",
            "--backend-store-uri", f"sqlite:///{workdir / 'server.db'}", "--artifacts-destination", str(workdir / "artifacts")]
-    with serving(cmd, port, workdir, workdir / "server.log", {**ENV, "MLFLOW_DISABLE_TELEMETRY": "true"}, "mlflow server") as url:
+    with serving(cmd, port, workdir, workdir / "server.log", {**ENV, "MLFLOW_DISABLE_TELEMETRY": "true", "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}, "mlflow server") as url:
         yield url
 
 

@@ -74,7 +74,7 @@ def mlflow_server(tmp_path_factory):
     port = free_port()
     cmd = [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port), "--workers", "2",
            "--backend-store-uri", f"sqlite:///{where / 'server.db'}", "--artifacts-destination", str(where / "artifacts")]
-    with serving(cmd, port, where, where / "server.log", {**ENV, "MLFLOW_DISABLE_TELEMETRY": "true"}, "mlflow server") as url:
+    with serving(cmd, port, where, where / "server.log", {**ENV, "MLFLOW_DISABLE_TELEMETRY": "true", "MLFLOW_SERVER_ENABLE_JOB_EXECUTION": "false"}, "mlflow server") as url:
         yield url
 
 
