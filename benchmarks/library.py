@@ -9,6 +9,7 @@ bootstrap 95 % interval (rows resampled within α), the CPU share of unconverged
 iterations; then writes the table to ``docs/performance.md`` (section ``library``).  Reproduce with::
 
     python benchmarks/library.py                 # data/library, 2000 bootstrap resamples, seed 2026
+    python benchmarks/library.py --generation 2  # only the rows of library generation 2 (section library-gen2)
 
 Issue 9's targets are ≥ 2000 verified per core-hour at α = 1.0 and ≥ 800 at α = 0.1.
 
@@ -102,6 +103,9 @@ def main() -> None:
     ap.add_argument("--library-dir", type=Path, default=Path("data/library"))
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--n-boot", type=int, default=2000)
+    ap.add_argument("--generation", type=int, default=None,
+                    help="only the rows of this library generation (by the solver-option hashes the manifest lists "
+                         "for it); the tables go to sections library-gen<N> and library-caps-gen<N>")
     args = ap.parse_args()
     manifest = read_manifest(args.library_dir, "cr3bp")
     if manifest is None:
@@ -109,21 +113,30 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     tables = {f"{e['alpha']:.3f}": read_library(args.library_dir, "cr3bp", f"{e['alpha']:.3f}")
               for e in manifest["per_alpha"]}
+    suffix, what = "", "the committed library"
+    if args.generation is not None:
+        (gen,) = [g for g in manifest["generations"] if g["generation"] == args.generation] or [None]
+        if gen is None:
+            sys.exit(f"the library has no generation {args.generation}")
+        hashes = set(gen["options_hashes"])
+        tables = {k: df[df["options_hash"].isin(hashes)].reset_index(drop=True) for k, df in tables.items()}
+        tables = {k: df for k, df in tables.items() if len(df)}
+        suffix, what = f"-gen{args.generation}", f"generation {args.generation} of the committed library ({gen['what']})"
     rows = [{"alpha": label, **throughput(df, rng, args.n_boot)} for label, df in tables.items()]
     rows.append({"alpha": "all", **throughput(pd.concat(tables.values(), ignore_index=True), rng, args.n_boot)})
     cmd = "python benchmarks/library.py " + " ".join(sys.argv[1:])
-    text = (f"Command: `{cmd}` — the committed library ({rows[-1]['solves']} solves, {rows[-1]['verified']} "
+    text = (f"Command: `{cmd}` — {what} ({rows[-1]['solves']} solves, {rows[-1]['verified']} "
             f"verified converged, {len(manifest['exports'])} exports); bootstrap seed {args.seed}, "
             f"{args.n_boot} resamples.\n\n" + markdown(rows))
     print(text)
-    write_section("library", text)
+    write_section("library" + suffix, text)
     caps = [{"alpha": label, **row} for label in CAP_ALPHAS if label in tables
             for row in cap_what_if(tables[label], CAPS, rng, args.n_boot)]
     text = (f"Command: `{cmd}` — the same solves; iteration caps {', '.join(map(str, CAPS))} computed from each "
             f"solve's iterations and CPU per iteration (IPOPT is deterministic); paired bootstrap over solves.\n\n"
             + markdown(caps))
     print(text)
-    write_section("library-caps", text)
+    write_section("library-caps" + suffix, text)
 
 
 if __name__ == "__main__":
