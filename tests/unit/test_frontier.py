@@ -248,6 +248,23 @@ def test_the_frontier_figure(runs):
     assert {t.get_text() for t in left.texts} == {"0.5", "0.3"}
 
 
+
+def test_points_sharing_a_gap_sit_side_by_side_centred_on_it_each_test_alpha_labelled_once():
+    from amorgs.figures.frontier import fig_frontier
+
+    rows = [{"design": run.split("-")[0], "run": run, "alpha": a, "gap": 0.1, "gap_relative": 0.1 / a,
+             "sampler": arm, "target": "high_quality", "unit": "iterations", "n": 102, "ratio_to_reuse": 1.5,
+             "ratio_to_reuse_ci95_low": 1.0, "ratio_to_reuse_ci95_high": 2.0}
+            for run, a in (("sparse-5", 0.4), ("sparse-5", 0.6), ("loo-1.000", 1.0))
+            for arm in ("amorgs", "continuation")]
+    fig = fig_frontier(pd.DataFrame(rows))
+    left = fig.axes[0]
+    xs = sorted(float(line.get_xdata()[0]) for line in left.lines if len(line.get_xdata()) == 1)
+    assert len(xs) == 6 and len(set(xs)) == 6  # six points at one gap, none on top of another
+    assert np.mean(xs) == pytest.approx(0.1) and np.diff(xs) == pytest.approx([np.diff(xs)[0]] * 5)
+    assert sorted(t.get_text() for t in left.texts) == ["0.4", "0.6", "1"]
+    assert all(t.xy[1] == pytest.approx(2.0) for t in left.texts)  # above the whiskers
+
 def _frontier(points):
     """A frontier table of (run, test α, relative gap, arm, ratio, upper end of its interval)."""
     return pd.DataFrame([{"design": run.split("-")[0], "run": run, "alpha": a, "gap_relative": g, "sampler": arm,

@@ -16,13 +16,26 @@ _MARKERS = "osD^vP*X"
 _GAPS = (("gap", "gap |Δα| to the nearest training α (N)"), ("gap_relative", "relative gap |Δα| / α"))
 
 
+def _dodged(t: pd.DataFrame, column: str, arms: list[str], width: float) -> pd.Series:
+    """x of each row of ``t``: its gap ``column``, moved sideways so that the points sharing one gap — every
+    (run, test α) there, ascending α, each with its arms in ``arms`` order — sit side by side, ``width`` apart
+    and centred on the gap (a gap with one point keeps its exact x)."""
+    xs = t[column].astype(float).copy()
+    for _, g in t.groupby(t[column].round(9)):
+        combos = sorted(set(zip(g["alpha"], g["run"])))
+        n_slots = len(combos) * len(arms)
+        for idx, r in g.iterrows():
+            slot = combos.index((r["alpha"], r["run"])) * len(arms) + arms.index(r["sampler"])
+            xs[idx] = float(r[column]) + (slot - (n_slots - 1) / 2) * width
+    return xs
+
+
 def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "high_quality") -> Figure:
-    """aRT(learned) ÷ aRT(reuse) with its bootstrap 95 % interval (log y; below the line at 1 learning wins)
-    against the absolute gap (left, N) and the relative gap (right), one point per (run, test α, learned arm):
-    colour = design, marker = learned arm (the arms at one gap side by side), ∞ drawn at the top edge as an
-    open marker, the test α written once beside its points.  ``unit``: cost in
-    ``iterations`` (IPOPT) or ``cpu_s``; ``target``: per ``high_quality`` solution or per new ``distinct``
-    optimum."""
+    """aRT(learned) ÷ aRT(reuse) with its bootstrap 95 % interval (log y; below the line at 1 learning wins) against
+    the absolute gap (left, N) and the relative gap (right), one point per (run, test α, learned arm): colour =
+    design, marker = learned arm (the points at one gap side by side, ascending test α), ∞ drawn at the top edge as
+    an open marker, the test α written once above its points, in its design's colour. ``unit``: cost in
+    ``iterations`` (IPOPT) or ``cpu_s``; ``target``: per ``high_quality`` solution or per new ``distinct`` optimum."""
     t = table[(table["unit"] == unit) & (table["target"] == target) & table["ratio_to_reuse"].notna()]
     designs = sorted(t["design"].unique())
     arms = sorted(t["sampler"].unique())
@@ -34,32 +47,35 @@ def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "h
     axes = fig.subplots(1, 2, sharey=True)
     plain = FuncFormatter(lambda v, _: f"{v:g}")
     for ax, (column, xlabel) in zip(axes, _GAPS):
-        dodge = 0.012 * float(t[column].max()) if len(t) else 0.0  # arms side by side at one gap
-        labelled = set()
+        dodge = 0.008 * float(t[column].max()) if len(t) else 0.0
+        xs = _dodged(t, column, arms, dodge)
+        tops: dict[tuple, tuple[list[float], float, int]] = {}  # (run, α) → (its x, top of its whiskers, colour)
         for i, design in enumerate(designs):
             for j, arm in enumerate(arms):
                 g = t[(t["design"] == design) & (t["sampler"] == arm)]
-                for r in g.itertuples(index=False):
+                for r, x in zip(g.itertuples(index=False), xs[g.index]):
                     y = hi if np.isinf(r.ratio_to_reuse) else r.ratio_to_reuse
                     if not (np.isfinite(y) and y > 0):
                         continue
                     y_lo = r.ratio_to_reuse_ci95_low if r.ratio_to_reuse_ci95_low > 0 else lo
                     y_hi = hi if np.isinf(r.ratio_to_reuse_ci95_high) else r.ratio_to_reuse_ci95_high
-                    x = getattr(r, column) + (j - (len(arms) - 1) / 2) * dodge
                     if np.isfinite(y_lo) and np.isfinite(y_hi):
                         ax.plot([x, x], [y_lo, y_hi], color=f"C{i}", lw=1.2, alpha=0.8)
                     ax.plot([x], [y], marker=_MARKERS[j % len(_MARKERS)], color=f"C{i}", ls="none",
                             mfc="none" if np.isinf(r.ratio_to_reuse) else f"C{i}")
-                    if (r.run, r.alpha) not in labelled:
-                        labelled.add((r.run, r.alpha))
-                        ax.annotate(f"{r.alpha:g}", (x, y), textcoords="offset points", xytext=(4, 3), fontsize=7)
+                    top = y_hi if np.isfinite(y_hi) else y
+                    x_seen, top_seen, _ = tops.get((r.run, r.alpha), ([], 0.0, i))
+                    tops[(r.run, r.alpha)] = (x_seen + [x], max(top_seen, top), i)
+        for (_, alpha), (x_seen, top, i) in tops.items():  # the test α once, above its points' whiskers
+            ax.annotate(f"{alpha:g}", (float(np.mean(x_seen)), min(top, hi)), textcoords="offset points",
+                        xytext=(0, 2), fontsize=7, ha="center", va="bottom", color=f"C{i}")
         ax.axhline(1.0, color="grey", ls="--", lw=0.8)
         ax.set_yscale("log")
         ax.set_ylim(lo, hi)
         ax.yaxis.set_major_formatter(plain)
         ax.yaxis.set_minor_formatter(plain)
         ax.tick_params(axis="y", which="minor", labelsize=7)
-        ax.set_xlim(0, 1.15 * float(t[column].max()) + dodge if len(t) else 1.0)
+        ax.set_xlim(0, 1.15 * float(xs.max()) if len(t) else 1.0)
         ax.set_xlabel(xlabel)
     per = "high-quality solution" if target == "high_quality" else "new η-distinct optimum"
     cost = "IPOPT iterations" if unit == "iterations" else "CPU s"
