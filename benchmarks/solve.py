@@ -4,7 +4,7 @@ Runs ``--starts`` uniform starts (spec §6) at each α on ONE core (one worker p
 with the default solver options unless a variant is chosen, and prints and writes the table to
 ``docs/performance.md`` (section between the BENCHMARK markers).  Reproduce with::
 
-    python benchmarks/solve.py                      # the default solver, 50 starts × α ∈ {0.1, 0.5, 1.0}
+    python benchmarks/solve.py                      # the default and the library solver, same 50 starts × α ∈ {0.1, 0.5, 1.0}
     python benchmarks/solve.py --variants --starts 12   # the comparison of transcription/solver variants
     python benchmarks/solve.py --scaling            # 1 → 2 worker processes
     python benchmarks/solve.py --compare --jobs 2   # previous default vs new default, same seed and starts
@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from amorgs.config import load_config
 from amorgs.problems import get_problem
 from amorgs.solvers.multistart import run_multistart
 from amorgs.solvers.options import IpoptOptions, TranscriptionOptions
@@ -125,9 +126,18 @@ COAST = {
     "interpolated coasts, L-BFGS history 30": _with(_RK8_COASTS, transcription={"coast": "interpolant"}),
     "interpolated coasts, L-BFGS history 6": _with(_RK8_COASTS, lbfgs_memory=6, transcription={"coast": "interpolant"}),
 }
+#: The default block: the two solvers in use today, on the same starts — the default (IPOPT L-BFGS history 30:
+#: `design`, the ablation's warm starts, every config but the library's) and the library config's (history 6:
+#: the cold starts that grow the library, issue 22), read from ``config/library.yaml`` so that it stays its own.
+DEFAULT_REFERENCE = "default solver (L-BFGS history 30)"
+DEFAULTS = {
+    DEFAULT_REFERENCE: IpoptOptions(),
+    "library config (L-BFGS history 6)": load_config(ROOT / "config" / "library.yaml").problems.cr3bp.solver,
+}
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.
-PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT), "coast": (COAST, COAST_DEFAULT)}
+PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT), "coast": (COAST, COAST_DEFAULT),
+          "default": (DEFAULTS, DEFAULT_REFERENCE)}
 TOF_BAND_TU = 6.3
 BOOTSTRAP = 10_000
 
@@ -318,9 +328,10 @@ def main() -> None:
         write_section("scaling", text)
         return
 
-    paired = "steps" if args.steps else "quasi_newton" if args.quasi_newton else "coast" if args.coast else None
+    paired = ("steps" if args.steps else "quasi_newton" if args.quasi_newton else "coast" if args.coast
+              else None if args.variants or args.compare or args.ipopt_screen else "default")
     variants = (VARIANTS if args.variants else COMPARE if args.compare else PAIRED[paired][0] if paired
-                else IPOPT_SCREEN if args.ipopt_screen else {"default": IpoptOptions()})
+                else IPOPT_SCREEN)
     if paired:  # α-major, so that the runs compared on the same starts run at about the same time
         cells = [(label, opts, alpha) for alpha in args.alphas for label, opts in variants.items()]
     else:
@@ -342,9 +353,8 @@ def main() -> None:
     rows, caps = [], []
     for df in raw:
         rows.append({"variant": df.variant.iloc[0], **summarize(df)} if len(variants) > 1 else summarize(df))
-        caps += cap_table(df)
-    name = ("variants" if args.variants else "compare" if args.compare else "ipopt_screen" if args.ipopt_screen
-            else paired or "default")
+        caps += [{"variant": df.variant.iloc[0], **row} for row in cap_table(df)]
+    name = "variants" if args.variants else "compare" if args.compare else "ipopt_screen" if args.ipopt_screen else paired
     text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; one worker process per cell.\n\n" + markdown(rows)
     if name == "default":
         text += "\nIteration cap (computed from the same solves, see the script's docstring):\n\n" + markdown(caps)
