@@ -43,7 +43,7 @@ def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "h
     shown = values[np.isfinite(values) & (values > 0)]
     lo, hi = (shown.min() / 2, shown.max() * 2) if shown.size else (0.1, 10.0)
     lo, hi = min(lo, 0.5), max(hi, 2.0)
-    fig = Figure(figsize=(11, 4.2), layout="tight")
+    fig = Figure(figsize=(11, 4.8), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
     plain = FuncFormatter(lambda v, _: f"{v:g}")
     for ax, (column, xlabel) in zip(axes, _GAPS):
@@ -84,7 +84,7 @@ def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "h
     handles += [axes[0].plot([], [], color="k", marker=_MARKERS[j % len(_MARKERS)], ls="none",
                              label=arm_label(a))[0] for j, a in enumerate(arms)]
     if handles:
-        axes[1].legend(handles=handles, fontsize=7, loc="best")
+        fig.legend(handles=handles, fontsize=7, loc="outside lower center", ncol=len(handles))  # off the points
     n = int(t["n"].min()) if len(t) else 0
     fig.suptitle(f"The frontier: below 1 the learned sampler beats reuse of the nearest α (bootstrap 95 %; "
                  f"≥ {n} starts per arm; labels: test α)", fontsize=10)
