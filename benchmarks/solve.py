@@ -1,8 +1,8 @@
 """Benchmark of the CR3BP local solver: verified converged solutions per core-hour.
 
 Runs ``--starts`` uniform starts (spec §6) at each α on ONE core (one worker process, solves in series),
-with the default solver options unless a variant is chosen, and prints and writes the table to
-``docs/performance.md`` (section between the BENCHMARK markers).  Reproduce with::
+with the default and the library config's solver options unless other variants are chosen, and prints and
+writes the table to ``docs/performance.md`` (section between the BENCHMARK markers).  Reproduce with::
 
     python benchmarks/solve.py                      # the default and the library solver, same 50 starts × α ∈ {0.1, 0.5, 1.0}
     python benchmarks/solve.py --variants --starts 12   # the comparison of transcription/solver variants
@@ -352,7 +352,7 @@ def main() -> None:
         raw = list(pool.map(run_cell, cells))
     rows, caps = [], []
     for df in raw:
-        rows.append({"variant": df.variant.iloc[0], **summarize(df)} if len(variants) > 1 else summarize(df))
+        rows.append({"variant": df.variant.iloc[0], **summarize(df)})
         caps += [{"variant": df.variant.iloc[0], **row} for row in cap_table(df)]
     name = "variants" if args.variants else "compare" if args.compare else "ipopt_screen" if args.ipopt_screen else paired
     text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; one worker process per cell.\n\n" + markdown(rows)

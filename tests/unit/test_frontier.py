@@ -248,7 +248,6 @@ def test_the_frontier_figure(runs):
     assert {t.get_text() for t in left.texts} == {"0.5", "0.3"}
 
 
-
 def test_points_sharing_a_gap_sit_side_by_side_centred_on_it_each_test_alpha_labelled_once():
     from amorgs.figures.frontier import fig_frontier
 
@@ -264,6 +263,7 @@ def test_points_sharing_a_gap_sit_side_by_side_centred_on_it_each_test_alpha_lab
     assert np.mean(xs) == pytest.approx(0.1) and np.diff(xs) == pytest.approx([np.diff(xs)[0]] * 5)
     assert sorted(t.get_text() for t in left.texts) == ["0.4", "0.6", "1"]
     assert all(t.xy[1] == pytest.approx(2.0) for t in left.texts)  # above the whiskers
+
 
 def _frontier(points):
     """A frontier table of (run, test α, relative gap, arm, ratio, upper end of its interval)."""
