@@ -6,6 +6,7 @@ into per-shard tables as the generate rule writes them.
 
 from __future__ import annotations
 
+import atexit
 import json
 import shutil
 import subprocess
@@ -47,7 +48,9 @@ def _generation_1_config() -> Path:
     cfg = mapping("library")
     cfg["problems"]["cr3bp"]["solver"].update(lbfgs_aug_solver="sherman-morrison", lbfgs_memory=30,
                                               transcription={"coast": "rk8"})
-    path = Path(tempfile.mkdtemp(prefix="amorgs-test-library-")) / "library.yaml"
+    folder = tempfile.mkdtemp(prefix="amorgs-test-library-")
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)  # built at import, so no tmp_path to hold it
+    path = Path(folder) / "library.yaml"
     path.write_text(yaml.safe_dump(cfg))
     return path
 
