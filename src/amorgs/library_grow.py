@@ -12,6 +12,7 @@ and every export is written atomically: stopping at any moment loses at most the
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -93,6 +94,21 @@ def snakemake_command(config_file: str | Path, workdir: str | Path, cores: int, 
     ]
 
 
+def check_grow_arguments(batches: int, hours: float | None, cores: int, niceness: int,
+                         until_converged: int | None) -> None:
+    """A ``ConfigError`` naming the option, for counts that would make :func:`grow` do nothing (or nonsense)."""
+    if batches < 1:
+        raise ConfigError(f"--batches {batches}: run at least 1 batch")
+    if hours is not None and not (math.isfinite(hours) and hours > 0):
+        raise ConfigError(f"--hours {hours}: give a positive number of hours (or leave it out: no time limit)")
+    if cores < 1:
+        raise ConfigError(f"--cores {cores}: Snakemake needs at least 1 core")
+    if not 0 <= niceness <= 19:
+        raise ConfigError(f"--nice {niceness}: the niceness added lies in 0–19 (0: none)")
+    if until_converged is not None and until_converged < 1:
+        raise ConfigError(f"--until-converged {until_converged}: give at least 1 converged solution per α")
+
+
 def grow(config_file: str | Path, library_dir: str | Path = "data/library", problem: str = "cr3bp",
          workdir: str | Path = "results/library-grow", cores: int = 2, batches: int = 1,
          hours: float | None = None, niceness: int = 19, log=print, alphas: list[float] | None = None,
@@ -106,6 +122,7 @@ def grow(config_file: str | Path, library_dir: str | Path = "data/library", prob
     Returns one export summary per batch (see :func:`export_library`).  ``niceness`` is added to this
     process's priority (and so to Snakemake's and its jobs') before anything starts.
     """
+    check_grow_arguments(batches, hours, cores, niceness, until_converged)
     grown_alphas(config_file, problem, alphas)  # a bad α fails before anything starts
     if niceness:
         os.nice(niceness)

@@ -32,7 +32,7 @@ from amorgs.data.library import (
     seeded_guesses,
 )
 from amorgs.library_grow import batch_targets, next_batch
-from amorgs.errors import InputError
+from amorgs.errors import ConfigError, InputError
 
 ROOT = Path(__file__).resolve().parents[2]
 LIBRARY = ROOT / "data" / "library"
@@ -219,7 +219,6 @@ def test_batches_skip_held_shards_and_cover_every_alpha(tmp_path):
 
 
 def test_focused_batches_grow_only_the_chosen_alpha(tmp_path):
-    from amorgs.errors import ConfigError
 
     focus = batch_targets(CONFIG, tmp_path / "none", "cr3bp", 2, alphas=[1.0])
     assert focus == [f"results/cr3bp/solutions/alpha=1.000/shard-{k}.parquet" for k in range(16, 24)]
@@ -259,6 +258,29 @@ def test_grow_until_converged_picks_the_short_alphas_and_stops_when_none_is_left
                 until_converged=1) == []
     assert said == ["library-grow: every α holds ≥ 1 converged solutions, stopping"]
     assert not (tmp_path / "work").exists()
+
+
+@pytest.mark.parametrize("option, kwargs", [
+    ("--batches 0", {"batches": 0}),
+    ("--hours -1", {"hours": -1.0}),
+    ("--hours nan", {"hours": float("nan")}),
+    ("--cores 0", {"cores": 0}),
+    ("--nice 20", {"niceness": 20}),
+    ("--until-converged 0", {"until_converged": 0}),
+])
+def test_grow_refuses_counts_that_would_do_nothing_naming_the_option(tmp_path, option, kwargs):
+    from amorgs.library_grow import grow
+
+    with pytest.raises(ConfigError, match=f"^{option.split()[0]} "):
+        grow(CONFIG, LIBRARY, "cr3bp", tmp_path / "work", **{"niceness": 0, **kwargs})
+    assert not (tmp_path / "work").exists()
+
+
+def test_grow_cli_says_which_option_is_wrong_in_one_line(tmp_path):
+    res = amorgs("library-grow", "--config", str(CONFIG), "--library-dir", str(LIBRARY),
+                 "--workdir", str(tmp_path / "work"), "--batches", "0")
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    assert res.stderr.strip() == "amorgs library-grow: --batches 0: run at least 1 batch"
 
 
 def test_library_export_cli_prints_one_line_for_a_foreign_shard(tmp_path):
