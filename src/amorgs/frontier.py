@@ -34,6 +34,8 @@ EXPERIMENT = "amorgs-frontier"
 RUN_CONFIG = "config.yaml"
 #: What the aggregation writes under its destination.
 OUTPUTS = ("frontier.csv", "frontier.md", "fig_frontier.png")
+#: Fewest bootstrap resamples the frontier accepts for its 95 % intervals (the 2.5 and 97.5 percentiles).
+MIN_BOOTSTRAP = 100
 
 
 def library_alphas(library_dir: str | Path, problem: str = "cr3bp") -> list[float]:
@@ -161,6 +163,8 @@ def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] | None = None
     from amorgs.data.io import atomic_path
     from amorgs.figures.frontier import fig_frontier
 
+    if n_boot < MIN_BOOTSTRAP:
+        raise InputError(f"--n-boot {n_boot}: a 95 % interval needs at least {MIN_BOOTSTRAP} bootstrap resamples")
     runs = [read_run(d) for d in run_dirs]
     table = frontier_table(runs, learned=learned, reuse=reuse, n_boot=n_boot, seed=seed)
     dest = Path(dest)

@@ -262,6 +262,8 @@ def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers
     starts = pd.read_parquet(path)
     if sample < 1:
         raise InputError(f"--sample {sample}: certify at least 1 start")
+    if workers < 1:
+        raise InputError(f"--workers {workers}: at least 1 solver process")
     cfg = load_config(dst / CONFIG_COPY)
     problem = get_problem("cr3bp")
     options = cfg.problems.cr3bp.solver

@@ -4,6 +4,8 @@ of the typed defaults) has the effective config of the file the run read (``conf
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -199,3 +201,20 @@ def test_add_arms_keeps_the_committed_arms_and_checks_the_rerun_ones(tmp_path):
     with pytest.raises(InputError, match="not the design"):
         (run / "config.yaml").write_text((run / "config.yaml").read_text().replace("n_starts: 34", "n_starts: 35"))
         add_arms_to_reference(base, [new], "config.yaml", run)
+
+
+@pytest.mark.parametrize("args, said", [
+    (["reference-certify", "reference/frontier/loo-0.100", "--sample", "0"], "--sample 0: certify at least 1 start"),
+    (["reference-certify", "reference/frontier/loo-0.100", "--workers", "0"], "--workers 0: at least 1 solver process"),
+    (["frontier", "reference/frontier/loo-0.100", "--n-boot", "0", "--no-mlflow"],
+     "--n-boot 0: a 95 % interval needs at least 100 bootstrap resamples"),
+])
+def test_certify_and_frontier_refuse_bad_counts_in_one_line_before_any_work(tmp_path, args, said):
+    if not (FRONTIER / "loo-0.100").is_dir():
+        pytest.skip("the committed frontier fold loo-0.100 is absent")
+    out = subprocess.run([sys.executable, "-m", "amorgs", *args, *(["--dest", str(tmp_path / "f")]
+                                                                   if args[0] == "frontier" else [])],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode != 0 and "Traceback" not in out.stderr
+    assert out.stderr.strip() == f"amorgs {args[0]}: {said}"
+    assert not (tmp_path / "f").exists()
