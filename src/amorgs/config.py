@@ -25,6 +25,7 @@ exact float behind each label is kept here and passed to the solver.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 from pathlib import Path
@@ -436,7 +437,32 @@ def load_workflow_config(config: dict, configfiles: list) -> Config:
     defaults."""
     for f in configfiles:
         load_config(f)
-    return from_mapping(config, "merged config (" + " + ".join([*map(str, configfiles), "--config"]) + ")")
+    return from_mapping(_command_line_switches(config),
+                        "merged config (" + " + ".join([*map(str, configfiles), "--config"]) + ")")
+
+
+def _command_line_switches(config: dict) -> dict:
+    """``config`` with the strings 'true' / 'false' (any case) that stand where a switch (:data:`Flag`) is expected
+    turned into booleans.  Snakemake reads a nested ``--config`` value with YAML's base loader, so
+    ``--config "mlflow={'enabled': false}"`` arrives as the string 'false'; a config *file* is validated on its
+    own first (:func:`load_workflow_config`), so a quoted switch in a file is still an error."""
+    try:
+        Config.model_validate(effective_mapping(config))
+        return config
+    except ValidationError as exc:
+        switches = [(err["loc"], err["input"]) for err in exc.errors() if err["type"] == "bool_type"
+                    and isinstance(err.get("input"), str) and err["input"].lower() in ("true", "false")]
+    out = copy.deepcopy(config)
+    for loc, text in switches:
+        node = out
+        for key in loc[:-1]:
+            if isinstance(node, dict) and key in node:
+                node = node[key]
+            elif isinstance(node, list) and isinstance(key, int) and key < len(node):
+                node = node[key]  # else: a union branch's type name in the location, not a key
+        if isinstance(node, dict) and node.get(loc[-1]) == text:
+            node[loc[-1]] = text.lower() == "true"
+    return out
 
 
 def _optional(node):

@@ -124,6 +124,27 @@ def test_snakemake_merges_files_and_overrides_as_the_loader_does(tmp_path):
         C.load_workflow_config({}, [str(bad)])
 
 
+def test_command_line_switches_arrive_as_strings_and_are_read_as_booleans(tmp_path):
+    """Snakemake parses a nested --config value with YAML's base loader (every leaf a string): 'false' / 'True'
+    where a switch stands are booleans; 'yes' stays an error, and so does a quoted switch in a config file."""
+    from snakemake.cli import parse_config
+    from snakemake.utils import update_config
+
+    for text, expected in (("false", False), ("True", True)):
+        merged = overrides("library")
+        update_config(merged, parse_config([f"mlflow={{'enabled': {text}}}", f"cr3bp_models={{'enabled': {text}}}"]))
+        cfg = C.load_workflow_config(merged, [str(ROOT / "config" / "library.yaml")])
+        assert (cfg.mlflow.enabled, cfg.cr3bp_models.enabled) == (expected, expected)
+        assert cfg.mlflow.experiment == "amorgs-library"
+    merged = overrides("library")
+    update_config(merged, parse_config(["mlflow={'enabled': yes}"]))
+    with pytest.raises(C.ConfigError, match=r"mlflow\.enabled: Input should be a valid boolean \(got 'yes'\)"):
+        C.load_workflow_config(merged, [str(ROOT / "config" / "library.yaml")])
+    quoted = write(tmp_path, {"mlflow": {"enabled": "false"}}, "quoted.yaml")
+    with pytest.raises(C.ConfigError, match=r"quoted\.yaml: mlflow\.enabled: Input should be a valid boolean"):
+        C.load_workflow_config(C.read_yaml(quoted), [str(quoted)])
+
+
 @pytest.mark.parametrize(
     ("path", "value", "expected"),
     [
