@@ -437,31 +437,29 @@ def load_workflow_config(config: dict, configfiles: list) -> Config:
     defaults."""
     for f in configfiles:
         load_config(f)
-    return from_mapping(_command_line_switches(config),
-                        "merged config (" + " + ".join([*map(str, configfiles), "--config"]) + ")")
+    try:
+        return Config.model_validate(effective_mapping(config))
+    except ValidationError as exc:  # validated again below, to name every problem in one ConfigError
+        config = _command_line_switches(config, exc)
+    return from_mapping(config, "merged config (" + " + ".join([*map(str, configfiles), "--config"]) + ")")
 
 
-def _command_line_switches(config: dict) -> dict:
-    """``config`` with the strings 'true' / 'false' (any case) that stand where a switch (:data:`Flag`) is expected
-    turned into booleans.  Snakemake reads a nested ``--config`` value with YAML's base loader, so
+def _command_line_switches(config: dict, exc: ValidationError) -> dict:
+    """``config`` with the strings 'true' / 'false' (any case) that ``exc`` found where a switch (:data:`Flag`) is
+    expected turned into booleans.  Snakemake reads a nested ``--config`` value with YAML's base loader, so
     ``--config "mlflow={'enabled': false}"`` arrives as the string 'false'; a config *file* is validated on its
     own first (:func:`load_workflow_config`), so a quoted switch in a file is still an error."""
-    try:
-        Config.model_validate(effective_mapping(config))
-        return config
-    except ValidationError as exc:
-        switches = [(err["loc"], err["input"]) for err in exc.errors() if err["type"] == "bool_type"
-                    and isinstance(err.get("input"), str) and err["input"].lower() in ("true", "false")]
     out = copy.deepcopy(config)
-    for loc, text in switches:
+    for err in exc.errors():
+        text = err.get("input")
+        if err["type"] != "bool_type" or not isinstance(text, str) or text.lower() not in ("true", "false"):
+            continue
         node = out
-        for key in loc[:-1]:
+        for key in err["loc"][:-1]:
             if isinstance(node, dict) and key in node:
-                node = node[key]
-            elif isinstance(node, list) and isinstance(key, int) and key < len(node):
                 node = node[key]  # else: a union branch's type name in the location, not a key
-        if isinstance(node, dict) and node.get(loc[-1]) == text:
-            node[loc[-1]] = text.lower() == "true"
+        if isinstance(node, dict) and node.get(err["loc"][-1]) == text:
+            node[err["loc"][-1]] = text.lower() == "true"
     return out
 
 
