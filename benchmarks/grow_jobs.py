@@ -51,6 +51,12 @@ def free_shards(library_dir: Path, labels: list[str], count: int, start: int) ->
     return out
 
 
+def measures(solves: int, verified: int, cpu_s: float, wall_s: float, cores: int) -> dict:
+    """The table's columns for ``solves`` (``verified`` of them) of ``cpu_s`` solve CPU in ``wall_s`` on ``cores``."""
+    return {"solves": solves, "verified": verified, "solve CPU (s)": cpu_s, "wall (s)": wall_s,
+            "utilisation %": 100 * cpu_s / (cores * wall_s), "verified per wall-hour": 3600 * verified / wall_s}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--config", default=str(ROOT / "config" / "library.yaml"))
@@ -86,18 +92,14 @@ def main() -> None:
             wall = time.perf_counter() - t0
             df = pd.concat([pd.read_parquet(workdir / t) for t in targets if (workdir / t).is_file()])
             row = {"round": r + 1, "variant": name, "shard": shard, "jobs": len(targets),
-                   "snakemake exit": done.returncode, "solves": len(df), "verified": int(df.converged.sum()),
-                   "solve CPU (s)": df.cpu_s.sum(), "wall (s)": wall,
-                   "utilisation %": 100 * df.cpu_s.sum() / (args.cores * wall),
-                   "verified per wall-hour": 3600 * df.converged.sum() / wall}
+                   "snakemake exit": done.returncode,
+                   **measures(len(df), int(df.converged.sum()), df.cpu_s.sum(), wall, args.cores)}
             print(row, flush=True)
             rows.append(row)
     table = pd.DataFrame(rows)
     total = table.groupby("variant", sort=False)[["solves", "verified", "solve CPU (s)", "wall (s)"]].sum()
-    summary = [{"variant": w, "solves": int(t["solves"]), "verified": int(t["verified"]),
-                "solve CPU (s)": t["solve CPU (s)"], "wall (s)": t["wall (s)"],
-                "utilisation %": 100 * t["solve CPU (s)"] / (args.cores * t["wall (s)"]),
-                "verified per wall-hour": 3600 * t["verified"] / t["wall (s)"]} for w, t in total.iterrows()]
+    summary = [{"variant": w, **measures(int(t["solves"]), int(t["verified"]), t["solve CPU (s)"], t["wall (s)"],
+                                         args.cores)} for w, t in total.iterrows()]
     cmd = "python benchmarks/grow_jobs.py " + " ".join(sys.argv[1:])
     text = (f"Command: `{cmd}` — {machine()}; {args.cores} cores; shards of the library config, one per α per "
             f"(round, variant).\n\n" + markdown(rows) + "\nPer variant, all rounds:\n\n" + markdown(summary))
