@@ -134,10 +134,18 @@ DEFAULTS = {
     DEFAULT_REFERENCE: IpoptOptions(),
     "library config (L-BFGS history 6)": load_config(ROOT / "config" / "library.yaml").problems.cr3bp.solver,
 }
+#: ``--controls``: the library's solver on the stored (θ, φ, ρ) against Cartesian controls (a direction v with
+#: ‖v‖ ≤ 1 and the throttle ρ, issue 22), on the same uniform starts.
+_LIBRARY_SOLVER = DEFAULTS["library config (L-BFGS history 6)"]
+CONTROLS_DEFAULT = "library solver, spherical controls (θ, φ, ρ) (generation 2)"
+CONTROLS = {
+    CONTROLS_DEFAULT: _LIBRARY_SOLVER,
+    "library solver, Cartesian controls (v, ρ), ‖v‖ ≤ 1": _with(_LIBRARY_SOLVER, transcription={"controls": "cartesian"}),
+}
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.
 PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT), "coast": (COAST, COAST_DEFAULT),
-          "default": (DEFAULTS, DEFAULT_REFERENCE)}
+          "default": (DEFAULTS, DEFAULT_REFERENCE), "controls": (CONTROLS, CONTROLS_DEFAULT)}
 TOF_BAND_TU = 6.3
 BOOTSTRAP = 10_000
 
@@ -307,6 +315,8 @@ def main() -> None:
                     help="default L-BFGS vs the SR1 update and a short L-BFGS history, same starts")
     ap.add_argument("--coast", action="store_true",
                     help="the default vs interpolated coasts + extended L-BFGS system (issue 22), same starts")
+    ap.add_argument("--controls", action="store_true",
+                    help="library solver: spherical (θ, φ, ρ) vs Cartesian controls on the same starts (issue 22)")
     ap.add_argument("--max-wall-s", type=float, default=None,
                     help="raise the wall-time safety net (on a loaded machine it would cut solves short)")
     ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
@@ -329,7 +339,7 @@ def main() -> None:
         return
 
     paired = ("steps" if args.steps else "quasi_newton" if args.quasi_newton else "coast" if args.coast
-              else None if args.variants or args.compare or args.ipopt_screen else "default")
+              else "controls" if args.controls else None if args.variants or args.compare or args.ipopt_screen else "default")
     variants = (VARIANTS if args.variants else COMPARE if args.compare else PAIRED[paired][0] if paired
                 else IPOPT_SCREEN)
     if paired:  # α-major, so that the runs compared on the same starts run at about the same time

@@ -78,3 +78,50 @@ def test_interpolated_coasts_follow_the_ballistic_flow_to_1e_9():
 
 def test_cpu_identity_is_a_stable_string():
     assert cpu_identity() == cpu_identity() and isinstance(cpu_identity(), str)
+
+
+def test_cartesian_controls_pose_the_same_problem_as_the_stored_layout():
+    """With ``controls='cartesian'`` the NLP's match defects at ``to_internal(x)`` are the stored layout's own
+    (the same thrust and fuel flow), the ‖v‖² ≤ 1 inequalities sit on their bound for the unit directions of a
+    stored vector, and ``to_stored`` gives back x — azimuth, elevation and throttle."""
+    import casadi as ca
+
+    problem = get_problem("cr3bp")
+    opts = TranscriptionOptions(coast="rk8", steps_per_segment=2, steps_per_coast=8, step_scaling_alpha=0.0)
+    spherical = ForwardBackwardTranscription(problem.initial_state, problem.terminal_state, opts)
+    cartesian = ForwardBackwardTranscription(problem.initial_state, problem.terminal_state,
+                                             TranscriptionOptions(**{**opts.to_dict(), "controls": "cartesian"}))
+    assert cartesian.n_w == 4 + 4 * 20 and cartesian.n_g == 7 + 20 and spherical.n_g == 7
+    lbg, ubg = cartesian.constraint_bounds()
+    assert np.all(lbg[:7] == 0) and np.all(ubg == 0) and np.all(lbg[7:] == -np.inf)
+    lo, hi = cartesian.bounds()
+    assert np.all(lo[4:].reshape(20, 4)[:, :3] == -1) and np.all(lo[4:].reshape(20, 4)[:, 3] == 0)
+    g = ca.Function("g", [cartesian.nlp["x"], cartesian.nlp["p"]], [cartesian.nlp["g"]])
+    for x in problem.sample_uniform(0.3, 3, np.random.default_rng(5)):
+        w = cartesian.to_internal(x, 0.3)
+        assert np.all(w >= lo) and np.all(w <= hi)
+        gw = np.asarray(g(w, 0.3)).ravel()
+        np.testing.assert_allclose(gw[:7], spherical.match_defect(x, 0.3), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(gw[7:], 0.0, atol=1e-12)
+        np.testing.assert_allclose(cartesian.to_stored(w), x, rtol=1e-10, atol=1e-12)
+    # A shorter direction stores the thrust it produces: throttle ρ·‖v‖ along v.
+    w = cartesian.to_internal(x, 0.3)
+    w[4:7] *= 0.5
+    stored = cartesian.to_stored(w)
+    assert np.isclose(stored[6], 0.5 * x[6]) and np.isclose(stored[4], x[4]) and np.isclose(stored[5], x[5])
+
+
+def test_the_compile_cache_key_follows_the_nlp_graph_not_only_the_options(tmp_path, monkeypatch):
+    """Two NLPs under the same identity (options) but with different expression graphs never share a cached
+    library — a code change that changes the NLP cannot load a stale one; the same graph finds the same file."""
+    import casadi as ca
+
+    from amorgs.solvers.codegen import compiled_library_path
+
+    monkeypatch.setenv("AMORGS_CACHE_DIR", str(tmp_path))
+    x, p = ca.MX.sym("x", 2), ca.MX.sym("p")
+    one = {"x": x, "p": p, "f": ca.sumsqr(x), "g": x[0] * p}
+    two = {"x": x, "p": p, "f": ca.sumsqr(x), "g": x[0] * p + 1e-12}
+    path = lambda nlp: compiled_library_path("toy", nlp, "limited-memory", {"options": "same"}, "-O2")
+    assert path(one) == path({**one}) and path(one).parent == tmp_path
+    assert path(one) != path(two)

@@ -62,6 +62,18 @@ def test_the_options_of_the_coast_kind_not_in_use_are_not_hashed():
         assert IpoptOptions.from_mapping(opts.to_dict()) == opts
 
 
+def test_spherical_controls_hash_as_before_the_option_and_cartesian_ones_apart():
+    """``controls`` enters the hash only when it is not the stored layout's own 'spherical': every solver from
+    before the option existed keeps its hash (the library's generations 1 and 2 above)."""
+    spherical = IpoptOptions.from_mapping({"lbfgs_memory": 6, "transcription": {"controls": "spherical"}})
+    assert "controls" not in spherical.transcription.hash_dict()
+    assert spherical.digest() == HASH_LIBRARY_CONFIG
+    cartesian = IpoptOptions.from_mapping({"lbfgs_memory": 6, "transcription": {"controls": "cartesian"}})
+    assert cartesian.transcription.hash_dict()["controls"] == "cartesian"
+    assert cartesian.digest() != HASH_LIBRARY_CONFIG
+    assert IpoptOptions.from_mapping(cartesian.to_dict()) == cartesian
+
+
 def test_defaults_are_the_default_config_and_hash_like_it():
     assert IpoptOptions().digest() == HASH_DEFAULT_CONFIG
     assert BfgsOptions().digest() == HASH_DEJONG_CONFIG

@@ -35,18 +35,20 @@ def cpu_identity() -> str:
     return f"{model}|{hashlib.sha256(flags.encode()).hexdigest()[:16]}"
 
 
-def compiled_nlp_library(name: str, nlp: dict, hessian: str, identity: dict, flags: str) -> Path:
-    """Shared library with the functions IPOPT needs for ``nlp``, generated and compiled once per machine.
+def compiled_library_path(name: str, nlp: dict, hessian: str, identity: dict, flags: str) -> Path:
+    """Where the compile cache keeps the library of ``nlp`` (see :func:`compiled_nlp_library`).
 
-    ``identity`` must name everything the problem compiles into the code (for the CR3BP: transcription
-    options and the boundary states, embedded as constants); the key adds the Hessian mode, the CasADi
-    version, the CPU architecture and the gcc flags (plus the CPU model and instruction-set flags when they
-    include ``-march=native``).  Concurrent workers may race to build it; each compiles into a private temp
-    file and ``os.replace`` makes the winner atomic.
+    ``identity`` names what the problem compiles into the code (for the CR3BP: transcription options and the
+    boundary states, embedded as constants); the key adds a SHA-256 of the NLP's own expression graph (CasADi's
+    serialisation of f and g, ≈ 0.1 s: a change of the code that builds the NLP can never load a stale
+    library), the Hessian mode, the CasADi version, the CPU architecture and the gcc flags (plus the CPU model
+    and instruction-set flags when they include ``-march=native``).
     """
+    graph = ca.Function("graph", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]]).serialize()
     key = json.dumps(
         {
             **identity,
+            "graph": hashlib.sha256(graph.encode()).hexdigest(),
             "hessian": hessian,
             "casadi": ca.__version__,
             "machine": platform.machine(),
@@ -56,7 +58,15 @@ def compiled_nlp_library(name: str, nlp: dict, hessian: str, identity: dict, fla
         },
         sort_keys=True,
     )
-    target = cache_dir() / f"{name}_nlp_{hashlib.sha256(key.encode()).hexdigest()[:16]}.so"
+    return cache_dir() / f"{name}_nlp_{hashlib.sha256(key.encode()).hexdigest()[:16]}.so"
+
+
+def compiled_nlp_library(name: str, nlp: dict, hessian: str, identity: dict, flags: str) -> Path:
+    """Shared library with the functions IPOPT needs for ``nlp``, generated and compiled once per machine
+    (cache key: :func:`compiled_library_path`).  Concurrent workers may race to build it; each compiles into a
+    private temp file and ``os.replace`` makes the winner atomic.
+    """
+    target = compiled_library_path(name, nlp, hessian, identity, flags)
     if target.is_file():
         return target
     target.parent.mkdir(parents=True, exist_ok=True)

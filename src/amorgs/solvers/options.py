@@ -87,11 +87,18 @@ class TranscriptionOptions(_Options):
         "apply the step law above step_scaling_alpha too (fewer steps at high thrust), never below "
         "min_steps_per_segment"))] = False
     min_steps_per_segment: Annotated[int, Field(ge=1, description="floor of the scaled step count")] = 1
+    controls: Annotated[Literal["spherical", "cartesian"], Field(description=(
+        "the NLP's control variables per segment: 'spherical' solves on the stored (θ, φ, ρ); 'cartesian' on "
+        "a direction v ∈ [−1, 1]³ with ‖v‖² ≤ 1 (one inequality per segment) and the throttle ρ ∈ [0, 1]: thrust "
+        "ρ·v, fuel flow ρ, so ‖v‖ = 1 wherever ρ > 0 at a fuel optimum — no azimuth wrap and no singular "
+        "elevation; stored solutions keep the (θ, φ, ρ) layout"))] = "spherical"
 
     def hash_dict(self) -> dict[str, Any]:
         """The options that determine the solve: the keys of the coast kind not in use are left out, so
         'rk8' transcriptions keep the ``options_hash`` they had before 'interpolant' existed."""
         unused = ("coast", "coast_grid_step") if self.coast == "rk8" else ("steps_per_coast", "coast_pieces")
+        if self.controls == "spherical":  # the hash of every solver from before the option existed
+            unused += ("controls",)
         return {k: v for k, v in self.to_dict().items() if k not in unused}
 
     @pydantic.model_validator(mode="after")

@@ -10,7 +10,10 @@ Forward arc: from ξ₀ coast τ_i, then thrust segments 1 … N/2 (each τ_s/N)
 velocity VU, fuel tonnes) are the equality constraints; the objective is −m_f.
 
 Internally the NLP variable ``w`` is this vector with m_f in tonnes (every state is O(1)), azimuths
-unbounded (wrapped to [0, 2π) on the way out), followed — with ``multiple_shooting`` — by the 7-states at the
+unbounded (wrapped to [0, 2π) on the way out) — or, with ``controls = 'cartesian'``, with each (θ_k, φ_k, ρ_k)
+replaced by (v_x, v_y, v_z, ρ)_k, a direction v ∈ [−1, 1]³ with ‖v‖² ≤ 1 (one inequality per segment after the
+match defects) and the throttle ρ: thrust ρ·v, fuel flow ρ, so ‖v‖ = 1 wherever ρ > 0 at a fuel optimum
+(84 core entries for N = 20) — followed — with ``multiple_shooting`` — by the 7-states at the
 start of every sub-arc ("piece") after the first on each side, so that each piece is integrated
 independently: the constraint Jacobian and the Lagrangian Hessian become block-sparse and an exact Hessian
 is cheap.  Every piece is integrated with a fixed number of 8th-order Runge–Kutta steps (the DOP853
@@ -147,12 +150,20 @@ class ForwardBackwardTranscription:
         # Pieces per chain: kc coast pieces then N/2 thrust segments.
         self.pieces_per_chain = self.kc + half
         self.n_nodes = 2 * (self.pieces_per_chain - 1) if opt.multiple_shooting else 0
-        self.n_w = CORE_SIZE + 7 * self.n_nodes
+        self.cartesian = opt.controls == "cartesian"
+        self.core_size = 4 + (4 if self.cartesian else 3) * self.n
+        self.n_w = self.core_size + 7 * self.n_nodes
         self._build()
 
     # -- layout ---------------------------------------------------------------------------------------
     def _controls(self, core):
-        """u4 for each segment (time order) from the core variables."""
+        """u4 = (ρ·û, ρ) for each segment (time order) from the internal core variables."""
+        if self.cartesian:
+            return [ca.vertcat(core[7 + 4 * k] * core[4 + 4 * k: 7 + 4 * k], core[7 + 4 * k]) for k in range(self.n)]
+        return self._stored_controls(core)
+
+    def _stored_controls(self, core):
+        """u4 = (ρ·û, ρ) for each segment (time order) from the stored layout's (θ, φ, ρ)."""
         us = []
         for k in range(self.n):
             th, ph, rho = core[4 + 3 * k], core[5 + 3 * k], core[6 + 3 * k]
@@ -177,14 +188,14 @@ class ForwardBackwardTranscription:
         w = ca.MX.sym("w", self.n_w)
         alpha = ca.MX.sym("alpha")
         p = ca.vertcat(*thrust_parameters(alpha))
-        core = w[:CORE_SIZE]
+        core = w[:self.core_size]
         us = self._controls(core)
         fwd, bwd = self._chain_specs(core, us)
         start_f = ca.DM(self.xi0)
         start_b = ca.vertcat(ca.DM(self.xif), core[3])
         g = []
         if self.options.multiple_shooting:
-            nodes = ca.reshape(w[CORE_SIZE:], 7, self.n_nodes)
+            nodes = ca.reshape(w[self.core_size:], 7, self.n_nodes)
             m = self.pieces_per_chain - 1
             ends = []
             for chain, start, node_cols in ((fwd, start_f, range(0, m)), (bwd, start_b, range(m, 2 * m))):
@@ -200,11 +211,15 @@ class ForwardBackwardTranscription:
             for kind, u, dt in bwd:
                 end_b = self._apply(kind, end_b, u, p, dt)
         match = end_b - end_f
-        self.nlp = {"x": w, "p": alpha, "f": -core[3], "g": ca.vertcat(*g, match)}
-        self.n_g = 7 * (len(g) + 1)
+        g.append(match)
+        self.n_eq = 7 * len(g)
+        if self.cartesian:  # ‖v_k‖² ≤ 1
+            g += [ca.sumsqr(core[4 + 4 * k: 7 + 4 * k]) - 1 for k in range(self.n)]
+        self.nlp = {"x": w, "p": alpha, "f": -core[3], "g": ca.vertcat(*g)}
+        self.n_g = self.n_eq + (self.n if self.cartesian else 0)
         # Node initialisation: the single-shooting states at every piece start, as one Function.
         x64 = ca.MX.sym("x", CORE_SIZE)
-        us64 = self._controls(x64)
+        us64 = self._stored_controls(x64)
         fwd64, bwd64 = self._chain_specs(x64, us64)
         node_states = []
         match64 = []
@@ -222,16 +237,21 @@ class ForwardBackwardTranscription:
 
     # -- bounds and conversions -----------------------------------------------------------------------
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Box bounds on w: spec §5 on the core (azimuths free), node masses in [0, m₀], others free."""
+        """Box bounds on w: spec §5 on the core (azimuths free; Cartesian u in [−1, 1]³), node masses in
+        [0, m₀], others free."""
         lo = np.full(self.n_w, -np.inf)
         hi = np.full(self.n_w, np.inf)
         lo[:4] = [0.0, 0.0, 0.0, 0.0]
         hi[:4] = [40.0, TAU_COAST_MAX, TAU_COAST_MAX, self.m0_t]
         for k in range(self.n):
-            lo[5 + 3 * k], hi[5 + 3 * k] = -math.pi / 2, math.pi / 2
-            lo[6 + 3 * k], hi[6 + 3 * k] = 0.0, 1.0
+            if self.cartesian:
+                lo[4 + 4 * k: 7 + 4 * k], hi[4 + 4 * k: 7 + 4 * k] = -1.0, 1.0  # v
+                lo[7 + 4 * k], hi[7 + 4 * k] = 0.0, 1.0
+            else:
+                lo[5 + 3 * k], hi[5 + 3 * k] = -math.pi / 2, math.pi / 2
+                lo[6 + 3 * k], hi[6 + 3 * k] = 0.0, 1.0
         if self.n_nodes:
-            mass = CORE_SIZE + 6 + 7 * np.arange(self.n_nodes)
+            mass = self.core_size + 6 + 7 * np.arange(self.n_nodes)
             lo[mass], hi[mass] = 0.0, self.m0_t
         return lo, hi
 
@@ -239,10 +259,34 @@ class ForwardBackwardTranscription:
         """Stored 64-vector (m_f in kg) → w, with node states from single-shooting propagation."""
         core = np.asarray(x, float).copy()
         core[3] /= 1000.0
+        internal = self._cartesian_core(core) if self.cartesian else core
         if not self.n_nodes:
-            return core
+            return internal
         nodes = np.asarray(self.node_init(core, alpha)).reshape(-1, order="F")
-        return np.concatenate([core, nodes])
+        return np.concatenate([internal, nodes])
+
+    def constraint_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds on g: the defects are equalities (0), the Cartesian ‖v‖² − 1 ≤ 0."""
+        lo, hi = np.zeros(self.n_g), np.zeros(self.n_g)
+        lo[self.n_eq:] = -np.inf
+        return lo, hi
+
+    def _cartesian_core(self, core: np.ndarray) -> np.ndarray:
+        """Stored-layout core (m_f in tonnes) → the Cartesian internal core (v = û, ρ)."""
+        th, ph, rho = core[4::3], core[5::3], core[6::3]
+        u = np.stack([np.cos(ph) * np.cos(th), np.cos(ph) * np.sin(th), np.sin(ph), rho], axis=1)
+        return np.concatenate([core[:4], u.ravel()])
+
+    @staticmethod
+    def _spherical_core(w_core: np.ndarray) -> np.ndarray:
+        """Cartesian internal core → stored layout: θ, φ of v (0 where v = 0) and the throttle ρ·‖v‖, so that
+        the stored thrust ρ_stored·û is the solved ρ·v exactly (the fuel flow differs by ρ·(1 − ‖v‖), which is
+        zero at a fuel optimum)."""
+        u = w_core[4:].reshape(-1, 4)
+        th = np.arctan2(u[:, 1], u[:, 0])
+        ph = np.arctan2(u[:, 2], np.hypot(u[:, 0], u[:, 1]))
+        rho = u[:, 3] * np.minimum(np.linalg.norm(u[:, :3], axis=1), 1.0)
+        return np.concatenate([w_core[:4], np.stack([th, ph, rho], axis=1).ravel()])
 
     def to_stored(self, w: np.ndarray) -> np.ndarray:
         """w → stored 64-vector: m_f in kg, θ wrapped to [0, 2π), τ_s/τ_i/τ_f, m_f, φ and ρ clipped to their bounds.
@@ -250,9 +294,10 @@ class ForwardBackwardTranscription:
         IPOPT may return values a few 1e-9 outside the box (its bound relaxation); clipping keeps every
         stored solution a valid warm start for ``check_guess``.
         """
-        x = np.asarray(w, float)[:CORE_SIZE].copy()
-        lo, hi = self.bounds()
-        x[:3] = np.clip(x[:3], lo[:3], hi[:3])
+        x = np.asarray(w, float)[:self.core_size].copy()
+        if self.cartesian:
+            x = self._spherical_core(x)
+        x[:3] = np.clip(x[:3], 0.0, [40.0, TAU_COAST_MAX, TAU_COAST_MAX])
         x[3] = min(max(x[3] * 1000.0, 0.0), self.m0_kg)
         x[4::3] = np.mod(x[4::3], 2 * math.pi)
         x[5::3] = np.clip(x[5::3], -math.pi / 2, math.pi / 2)
