@@ -141,3 +141,16 @@ def test_solution_lies_inside_the_box_and_is_a_valid_warm_start(problem, solver,
     assert np.all(x >= problem.lower) and np.all(x <= problem.upper)
     again = solver.solve(x, 1.0)  # warm start from the stored solution converges at once
     assert again.converged and again.iterations <= 30
+
+
+def test_cartesian_controls_solve_to_a_verified_solution_in_the_stored_layout(problem, solution):
+    """A real IPOPT solve on Cartesian controls (CasADi's VM, no compile: a warm start is a few iterations):
+    from a converged solution it re-converges, and what it stores — (θ, φ, ρ·‖v‖) — passes the independent
+    DOP853 check; the solve's defect counts the match point only, not the ‖v‖ ≤ 1 inequalities."""
+    cartesian = problem.make_local_solver(
+        {"max_iter": 200, "compile": "none", "transcription": {"controls": "cartesian", "controls_switch_alpha": 2.0}})
+    assert cartesian.transcription(1.0).n_g == 7 + 20
+    record = cartesian.solve(problem.check_guess(solution.x), 1.0)
+    assert record.converged and record.solver_success and record.defect <= 1e-8 and record.verify_defect <= 1e-5
+    assert record.x[3] == pytest.approx(solution.x[3], abs=0.5)
+    problem.check_guess(record.x)

@@ -3,6 +3,7 @@
 Validation, defaults and hashes of IpoptOptions: tests/unit/test_solver_options.py.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -33,6 +34,24 @@ def test_step_law_up_and_optionally_down():
     resolved = both.for_alpha(1.0)
     assert resolved.step_scaling_alpha == 0.0 and not resolved.scale_down
     assert resolved.for_alpha(0.1) == resolved  # resolving twice is a no-op
+
+
+def test_cartesian_controls_switch_to_spherical_from_their_alpha():
+    """``controls_switch_alpha`` resolves per α like the step count: Cartesian below it, the stored layout's
+    spherical controls from it on (whose grid, and compiled code, is the spherical solver's own)."""
+    both = TranscriptionOptions(controls="cartesian", controls_switch_alpha=0.5)
+    assert both.for_alpha(0.1).controls == "cartesian" and both.for_alpha(0.49).controls == "cartesian"
+    assert both.for_alpha(0.5) == TranscriptionOptions().for_alpha(0.5)
+    assert both.for_alpha(1.0).hash_dict() == TranscriptionOptions().for_alpha(1.0).hash_dict()
+    assert both.for_alpha(0.1).controls_switch_alpha == 0.0 and both.for_alpha(0.1).for_alpha(1.0).controls == "cartesian"
+    everywhere = TranscriptionOptions(controls="cartesian")
+    assert everywhere.for_alpha(1.0).controls == "cartesian"
+    try:
+        get_problem("cr3bp").transcribe(dataclasses.replace(both.for_alpha(0.1), controls_switch_alpha=0.5))
+    except ValueError as exc:
+        assert "for_alpha" in str(exc)
+    else:
+        raise AssertionError("an unresolved controls switch was transcribed")
 
 
 def test_to_stored_clips_times_and_mass_into_the_box():

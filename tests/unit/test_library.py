@@ -469,7 +469,7 @@ def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(
     """Generation 1 rows held (RK8 coasts, L-BFGS history 30): the library config with today's solver (generation
     2) may start generation 2; the generation-1 solver with another option (another hash, same generation) is
     refused naming the key."""
-    from amorgs.data.library import _check_same_library, library_identity
+    from amorgs.data.library import _check_same_library, library_identity, solver_generation
     import yaml
 
     def config_with(name, **solver):
@@ -492,6 +492,21 @@ def test_a_later_solver_generation_starts_a_generation_and_nothing_else_gets_in(
     with pytest.raises(InputError, match="options_hash"):
         _check_same_library(manifest, library_identity(other, "cr3bp"), other.problems.cr3bp.solver,
                             tmp_path / "other.yaml", tmp_path)
+    # Generation 2 held (interpolated coasts, history 6): Cartesian controls start generation 3; generation 2's
+    # solver with another option is refused.
+    generation_2 = config_with("g2.yaml", lbfgs_memory=6, transcription={"controls": "spherical"})
+    assert solver_generation(generation_2.problems.cr3bp.solver) == 2
+    assert generation_2.problems.cr3bp.solver.digest() == "e2d640cc3c36"  # every generation-2 row's hash
+    manifest["files"][0].update(options_hashes=["e2d640cc3c36"], generation=2)
+    cartesian = config_with("g3.yaml", lbfgs_memory=6, transcription={"controls": "cartesian",
+                                                                      "controls_switch_alpha": 0.5})
+    assert solver_generation(cartesian.problems.cr3bp.solver) == 3
+    _check_same_library(manifest, library_identity(cartesian, "cr3bp"), cartesian.problems.cr3bp.solver,
+                        tmp_path / "g3.yaml", tmp_path)
+    other = config_with("other2.yaml", lbfgs_memory=7, transcription={"controls": "spherical"})
+    with pytest.raises(InputError, match="options_hash"):
+        _check_same_library(manifest, library_identity(other, "cr3bp"), other.problems.cr3bp.solver,
+                            tmp_path / "other2.yaml", tmp_path)
 
 
 def test_the_shipped_library_config_is_the_committed_librarys(tmp_path):

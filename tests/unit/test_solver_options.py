@@ -26,8 +26,11 @@ HASH_RK8_PAPER_CONFIG = "4fd020ee7912"  # cr3bp, config/paper.yaml: max_iter 100
 HASH_DEFAULT_CONFIG = "5589dd21c0ef"
 HASH_SMOKE_CONFIG = "cc78d27683b5"
 HASH_PAPER_CONFIG = "087b38db5767"
-#: config/library.yaml's solver: today's with L-BFGS history 6 (cold starts only; the library's generation 2).
+#: The library's generation-2 solver: today's with L-BFGS history 6 (cold starts only).
 HASH_LIBRARY_CONFIG = "e2d640cc3c36"
+#: config/library.yaml's solver since generation 3: the same with Cartesian controls below α = 0.25.
+HASH_LIBRARY_GEN3_CONFIG = "f3ab6821eb09"
+GEN3 = {"lbfgs_memory": 6, "transcription": {"controls": "cartesian", "controls_switch_alpha": 0.25}}
 HASH_DEJONG_CONFIG = "817e088f0114"  # dejong, every config: gtol 1e-6, maxiter 500
 RK8 = {"lbfgs_aug_solver": "sherman-morrison", "lbfgs_memory": 30, "transcription": {"coast": "rk8"}}
 
@@ -42,6 +45,7 @@ RK8 = {"lbfgs_aug_solver": "sherman-morrison", "lbfgs_memory": 30, "transcriptio
         (IpoptOptions, {"max_iter": 50, "max_wall_s": 60.0}, HASH_SMOKE_CONFIG),
         (IpoptOptions, {"max_iter": 1000, "max_wall_s": 500.0}, HASH_PAPER_CONFIG),
         (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0, "lbfgs_memory": 6}, HASH_LIBRARY_CONFIG),
+        (IpoptOptions, {"max_iter": 1000, "max_wall_s": 300.0, **GEN3}, HASH_LIBRARY_GEN3_CONFIG),
         (BfgsOptions, {"gtol": 1.0e-6, "maxiter": 500}, HASH_DEJONG_CONFIG),
     ],
 )

@@ -11,9 +11,9 @@ solver-option hashes, generation, CPU-hours, export time and git commit.  :func:
 (``amorgs library-compact``) merges them into one file per (α, generation), the same rows in fewer bytes.
 
 *Generations* (:data:`GENERATIONS`): when the solver that fills the library changes in substance (issue 22:
-interpolated coasts), a new generation starts beside the old one.  Every file entry names its generation
-(entries without one are generation 1), and the manifest's ``generations`` says what each is, its
-solver-option hashes and its totals.  Every generation stays verified and readable; a row's
+interpolated coasts, then Cartesian controls at low thrust), a new generation starts beside the old one.
+Every file entry names its generation (entries without one are generation 1), and the manifest's
+``generations`` says what each is, its solver-option hashes and its totals.  Every generation stays verified and readable; a row's
 ``options_hash`` says exactly which options produced it.  Shard indices are shared across generations (a
 batch index is never reused), so the seeds never collide.
 
@@ -301,12 +301,16 @@ def _per_alpha(entries: list[dict]) -> list[dict]:
 GENERATIONS = {
     1: "RK8 coasts, integrated at every evaluation (every solve before issue 22)",
     2: "coasts read off the interpolated ballistic flow (issue 22)",
+    3: "Cartesian controls (a direction with ‖v‖ ≤ 1 and the throttle) at low thrust, interpolated coasts (issue 22)",
 }
 
 
 def solver_generation(solver) -> int:
-    """The generation a solver's rows belong to: 2 with interpolated coasts, 1 otherwise."""
-    return 2 if getattr(getattr(solver, "transcription", None), "coast", None) == "interpolant" else 1
+    """The generation a solver's rows belong to: 3 with Cartesian controls, 2 with interpolated coasts, else 1."""
+    transcription = getattr(solver, "transcription", None)
+    if getattr(transcription, "controls", None) == "cartesian":
+        return 3
+    return 2 if getattr(transcription, "coast", None) == "interpolant" else 1
 
 
 def _generations(files: list[dict]) -> list[dict]:

@@ -92,13 +92,17 @@ class TranscriptionOptions(_Options):
         "a direction v ∈ [−1, 1]³ with ‖v‖² ≤ 1 (one inequality per segment) and the throttle ρ ∈ [0, 1]: thrust "
         "ρ·v, fuel flow ρ, so ‖v‖ = 1 wherever ρ > 0 at a fuel optimum — no azimuth wrap and no singular "
         "elevation; stored solutions keep the (θ, φ, ρ) layout"))] = "spherical"
+    controls_switch_alpha: Annotated[float, Field(ge=0, description=(
+        "with controls 'cartesian': the α (N) from which on the solve uses the spherical controls instead "
+        "(Cartesian controls converge more often at low thrust and less often at high thrust, "
+        "docs/performance.md); 0 = Cartesian at every α"))] = 0.0
 
     def hash_dict(self) -> dict[str, Any]:
         """The options that determine the solve: the keys of the coast kind not in use are left out, so
         'rk8' transcriptions keep the ``options_hash`` they had before 'interpolant' existed."""
         unused = ("coast", "coast_grid_step") if self.coast == "rk8" else ("steps_per_coast", "coast_pieces")
         if self.controls == "spherical":  # the hash of every solver from before the option existed
-            unused += ("controls",)
+            unused += ("controls", "controls_switch_alpha")
         return {k: v for k, v in self.to_dict().items() if k not in unused}
 
     @pydantic.model_validator(mode="after")
@@ -109,13 +113,17 @@ class TranscriptionOptions(_Options):
         return self
 
     def for_alpha(self, alpha: float) -> TranscriptionOptions:
-        """The options with ``steps_per_segment`` resolved for this α (and the scaling switched off)."""
+        """The options with ``steps_per_segment`` and ``controls`` resolved for this α (the scaling and the
+        switch off)."""
         steps = self.steps_per_segment
         if self.step_scaling_alpha > 0 and (alpha < self.step_scaling_alpha or self.scale_down):
             steps = math.ceil(self.steps_per_segment * math.sqrt(self.step_scaling_alpha / alpha) - 1e-9)
             steps = max(steps, self.min_steps_per_segment)
+        controls = self.controls
+        if controls == "cartesian" and 0 < self.controls_switch_alpha <= alpha:
+            controls = "spherical"
         return dataclasses.replace(self, steps_per_segment=steps, step_scaling_alpha=0.0, scale_down=False,
-                                   min_steps_per_segment=1)
+                                   min_steps_per_segment=1, controls=controls, controls_switch_alpha=0.0)
 
 
 @dataclass(frozen=True, config=_CONFIG)

@@ -126,8 +126,9 @@ class ForwardBackwardTranscription:
 
     def __init__(self, initial_state, terminal_state, options: TranscriptionOptions):
         self.options = options
-        if self.options.step_scaling_alpha > 0:
-            raise ValueError("resolve the α-dependent step count first: TranscriptionOptions.for_alpha(alpha)")
+        if self.options.step_scaling_alpha > 0 or self.options.controls_switch_alpha > 0:
+            raise ValueError("resolve the α-dependent step count and controls first: "
+                             "TranscriptionOptions.for_alpha(alpha)")
         opt = self.options
         self.n = N_SEGMENTS
         self.xi0 = np.asarray(initial_state, float).copy()
