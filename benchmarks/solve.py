@@ -12,6 +12,8 @@ writes the table to ``docs/performance.md`` (section between the BENCHMARK marke
     python benchmarks/solve.py --ipopt-screen --starts 10 --alphas 1.0   # IPOPT options, one at a time
     python benchmarks/solve.py --quasi-newton --alphas 0.1 1.0 --max-wall-s 600   # L-BFGS 30 vs SR1, history 6
     python benchmarks/solve.py --coast --starts 200 --alphas 0.1 1.0 --jobs 2 --max-wall-s 600   # issue 22
+    python benchmarks/solve.py --controls --starts 200 --alphas 0.1 1.0 --jobs 2 --max-wall-s 600   # Cartesian controls
+    python benchmarks/solve.py --controls --starts 100 --alphas 0.2 0.3 0.5 --jobs 2 --max-wall-s 600 --section controls_switch
 
 ``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
 the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
@@ -132,11 +134,13 @@ COAST = {
 DEFAULT_REFERENCE = "default solver (L-BFGS history 30)"
 DEFAULTS = {
     DEFAULT_REFERENCE: IpoptOptions(),
-    "library config (L-BFGS history 6)": load_config(ROOT / "config" / "library.yaml").problems.cr3bp.solver,
+    "library config (L-BFGS history 6, Cartesian controls below α = 0.25)":
+        load_config(ROOT / "config" / "library.yaml").problems.cr3bp.solver,
 }
 #: ``--controls``: the library's solver on the stored (θ, φ, ρ) against Cartesian controls (a direction v with
 #: ‖v‖ ≤ 1 and the throttle ρ, issue 22), on the same uniform starts.
-_LIBRARY_SOLVER = DEFAULTS["library config (L-BFGS history 6)"]
+_LIBRARY_SOLVER = _with(DEFAULTS["library config (L-BFGS history 6, Cartesian controls below α = 0.25)"],
+                        transcription={"controls": "spherical", "controls_switch_alpha": 0.0})
 CONTROLS_DEFAULT = "library solver, spherical controls (θ, φ, ρ) (generation 2)"
 CONTROLS = {
     CONTROLS_DEFAULT: _LIBRARY_SOLVER,
@@ -317,6 +321,8 @@ def main() -> None:
                     help="the default vs interpolated coasts + extended L-BFGS system (issue 22), same starts")
     ap.add_argument("--controls", action="store_true",
                     help="library solver: spherical (θ, φ, ρ) vs Cartesian controls on the same starts (issue 22)")
+    ap.add_argument("--section", default=None,
+                    help="name of the docs/performance.md block to write (default: the mode's own, e.g. controls)")
     ap.add_argument("--max-wall-s", type=float, default=None,
                     help="raise the wall-time safety net (on a loaded machine it would cut solves short)")
     ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
@@ -364,9 +370,10 @@ def main() -> None:
     for df in raw:
         rows.append({"variant": df.variant.iloc[0], **summarize(df)})
         caps += [{"variant": df.variant.iloc[0], **row} for row in cap_table(df)]
-    name = "variants" if args.variants else "compare" if args.compare else "ipopt_screen" if args.ipopt_screen else paired
+    mode = "variants" if args.variants else "compare" if args.compare else "ipopt_screen" if args.ipopt_screen else paired
+    name = args.section or mode
     text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; one worker process per cell.\n\n" + markdown(rows)
-    if name == "default":
+    if mode == "default":
         text += "\nIteration cap (computed from the same solves, see the script's docstring):\n\n" + markdown(caps)
     all_raw = pd.concat(raw)
     if args.raw:  # first, so that a failure in the tables below does not lose the solves
