@@ -144,3 +144,41 @@ def test_the_compile_cache_key_follows_the_nlp_graph_not_only_the_options(tmp_pa
     path = lambda nlp: compiled_library_path("toy", nlp, "limited-memory", {"options": "same"}, "-O2")
     assert path(one) == path({**one}) and path(one).parent == tmp_path
     assert path(one) != path(two)
+
+
+def test_cartesian_to_stored_clips_a_relaxed_solution_into_a_valid_warm_start():
+    """IPOPT's bound relaxation leaves v, ρ and ‖v‖ a few 1e-9 outside their bounds: the stored vector is
+    still inside the spec's box (ρ·min(‖v‖, 1) clipped to [0, 1]) and a valid warm start."""
+    problem = get_problem("cr3bp")
+    tr = ForwardBackwardTranscription(problem.initial_state, problem.terminal_state, TranscriptionOptions(
+        coast="rk8", steps_per_segment=1, steps_per_coast=8, step_scaling_alpha=0.0, controls="cartesian"))
+    x = problem.sample_uniform(1.0, 1, np.random.default_rng(2))[0]
+    w = tr.to_internal(x, 1.0)
+    controls = w[4:tr.core_size].reshape(-1, 4)
+    controls[0, :3] *= 1 + 9e-9          # ‖v‖ just above 1
+    controls[1, 3], controls[2, 3] = -9e-9, 1 + 9e-9  # ρ just outside [0, 1]
+    controls[3] = [0.0, 0.0, 0.0, 0.4]    # no direction at all
+    stored = problem.check_guess(tr.to_stored(w))
+    assert np.all(stored >= problem.lower) and np.all(stored <= problem.upper)
+    assert stored[6 + 3 * 1] == 0.0 and stored[6 + 3 * 2] == 1.0 and stored[6 + 3 * 3] == 0.0
+
+
+def test_the_compile_cache_path_is_the_same_in_every_process_and_shared_past_the_switch():
+    """The real NLP's graph hash is deterministic across processes (else every worker would recompile), and
+    generation 3 at α ≥ its switch compiles to generation 2's library (the same NLP, the same file)."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys; from amorgs.problems import get_problem; from amorgs.solvers.codegen import compiled_library_path\n"
+        "from amorgs.solvers.options import IpoptOptions\n"
+        "p = get_problem('cr3bp')\n"
+        "for t in ({}, {'controls': 'cartesian', 'controls_switch_alpha': 0.25}):\n"
+        "    o = IpoptOptions.from_mapping({'transcription': t}).transcription.for_alpha(0.3)\n"
+        "    tr = p.transcribe(o)\n"
+        "    print(compiled_library_path('cr3bp', tr.nlp, 'limited-memory', {'transcription': o.hash_dict(), "
+        "**p.code_identity()}, '-O2').name)\n"
+    )
+    runs = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
+            for _ in range(2)]
+    assert runs[0] == runs[1] and len(runs[0]) == 2 and runs[0][0] == runs[0][1]

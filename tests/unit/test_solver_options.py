@@ -210,3 +210,13 @@ def test_usable_as_config_model_field_with_a_documented_schema():
     ipopt = schema["$defs"]["IpoptOptions"]["properties"]
     assert ipopt["max_wall_s"]["default"] == IpoptOptions().max_wall_s and "(s)" in ipopt["max_wall_s"]["description"]
     assert ipopt["max_iter"]["minimum"] == 1 and math.isclose(ipopt["tol"]["default"], 1e-6)
+
+
+def test_constraint_violation_counts_equalities_both_ways_and_inequalities_above_their_bound():
+    from amorgs.solvers.ipopt import constraint_violation
+
+    lbg, ubg = np.array([0.0, 0.0, -np.inf]), np.array([0.0, 0.0, 0.0])
+    assert constraint_violation(np.array([1e-3, -2e-3, -0.9]), lbg, ubg) == 2e-3  # a slack inequality is 0
+    assert constraint_violation(np.array([0.0, 0.0, 5e-3]), lbg, ubg) == 5e-3
+    assert constraint_violation(np.array([0.0, np.nan, 0.0]), lbg, ubg) == math.inf
+    assert constraint_violation(np.zeros(0), np.zeros(0), np.zeros(0)) == 0.0

@@ -64,17 +64,31 @@ class TranscribedProblem(Protocol):
         ...
 
 
+def constraint_violation(g: np.ndarray, lbg: np.ndarray, ubg: np.ndarray) -> float:
+    """The largest distance of a constraint value outside its bounds [lbg, ubg] (0 inside; |g| for an
+    equality); ``inf`` when any value is not finite."""
+    if not g.size:
+        return 0.0
+    if not np.all(np.isfinite(g)):
+        return math.inf
+    return float(np.max(np.maximum(np.maximum(lbg - g, g - ubg), 0.0)))
+
+
 class StallMonitor(ca.Callback):
-    """IPOPT iteration callback: records max|g| per iteration and stops a stalled solve.
+    """IPOPT iteration callback: records the primal infeasibility (:func:`constraint_violation` of g against
+    its bounds) per iteration and stops a stalled solve.
 
     Rule (deterministic, iteration counts and infeasibility only): at iteration i ≥ ``window`` the solve is
-    stopped when the best max|g| of iterations 0…i is still above ``floor`` and above ``factor`` × the best
-    max|g| of iterations 0…i−window, i.e. the primal infeasibility did not fall by 1/factor over the last
-    ``window`` iterations.  ``window`` = 0 only records.
+    stopped when the best infeasibility of iterations 0…i is still above ``floor`` and above ``factor`` × the
+    best of iterations 0…i−window, i.e. it did not fall by 1/factor over the last ``window`` iterations.
+    ``window`` = 0 only records.
     """
 
-    def __init__(self, name: str, n_x: int, n_g: int, n_p: int, window: int, factor: float, floor: float):
+    def __init__(self, name: str, n_x: int, g_bounds: tuple[np.ndarray, np.ndarray], n_p: int, window: int,
+                 factor: float, floor: float):
         ca.Callback.__init__(self)
+        self.lbg, self.ubg = (np.asarray(b, float) for b in g_bounds)
+        n_g = self.lbg.size
         self._sizes = {"x": n_x, "f": 1, "g": n_g, "lam_x": n_x, "lam_g": n_g, "lam_p": n_p}
         self.window, self.factor, self.floor = int(window), float(factor), float(floor)
         self.trace: list[float] = []
@@ -102,8 +116,7 @@ class StallMonitor(ca.Callback):
         return ca.Sparsity.dense(n, 1) if n else ca.Sparsity(0, 0)
 
     def eval(self, arg):
-        g = np.asarray(arg[ca.nlpsol_out().index("g")]).ravel()
-        inf = float(np.max(np.abs(g))) if g.size and np.all(np.isfinite(g)) else math.inf
+        inf = constraint_violation(np.asarray(arg[ca.nlpsol_out().index("g")]).ravel(), self.lbg, self.ubg)
         self.trace.append(inf)
         self.best.append(min(inf, self.best[-1]) if self.best else inf)
         i = len(self.trace) - 1
@@ -173,8 +186,8 @@ class IpoptSolver:
             # attached only when the stall abort is on.  It never changes the iterates.
             monitor = None
             if o.stall_window > 0:
-                monitor = StallMonitor(f"{p.name}_monitor", tr.n_w, tr.n_g, 1, o.stall_window, o.stall_factor,
-                                       o.stall_floor)
+                monitor = StallMonitor(f"{p.name}_monitor", tr.n_w, tr.constraint_bounds(), 1, o.stall_window,
+                                       o.stall_factor, o.stall_floor)
                 opts["iteration_callback"] = monitor
             identity = {"transcription": tr_opts.hash_dict(), **p.code_identity()}
             nlpsol, jit_dir = ipopt_nlpsol(p.name, tr.nlp, opts, o.compile, o.compile_flags, o.hessian, identity)
@@ -215,7 +228,7 @@ class IpoptSolver:
         # 1e-9 outside its bound (bound relaxation) is a control the stored layout clips (to_stored).
         eq = lbg == ubg
         g = np.asarray(sol["g"]).ravel()
-        defect = float(np.max(np.abs(g[eq] - lbg[eq]))) if np.all(np.isfinite(w)) else math.inf
+        defect = constraint_violation(g[eq], lbg[eq], ubg[eq]) if np.all(np.isfinite(w)) else math.inf
         x = tr.to_stored(w)
         solver_success = status in IPOPT_SUCCESS and defect <= self.options.feasibility_tol
         verify = p.verify_defect(x, alpha) if solver_success else math.nan

@@ -61,7 +61,8 @@ def _adapter(cls: type) -> pydantic.TypeAdapter:
 @dataclass(frozen=True, config=_CONFIG)
 class TranscriptionOptions(_Options):
     """Integration and layout choices of the CR3BP transcription (:mod:`amorgs.problems.cr3bp.transcription`);
-    they never change the stored 64-vector.  Use :meth:`for_alpha` to resolve the α-dependent step count."""
+    they never change the stored 64-vector.  Use :meth:`for_alpha` to resolve the α-dependent step count and
+    controls."""
 
     steps_per_segment: Annotated[int, Field(ge=1, description=(
         "RK8 steps per thrust segment (length τ_s/N) at α = step_scaling_alpha; below it the count grows as "
@@ -135,8 +136,8 @@ class IpoptOptions(_Options):
 
     Stall abort (deterministic: iteration counts and infeasibility only, never wall time): with
     ``stall_window`` = W > 0 a solve stops with status ``aborted_stalled`` at the first iteration i ≥ W where
-    the best max|g| so far is above ``stall_floor`` and above ``stall_factor`` × the best max|g| up to
-    iteration i − W.  The rule was chosen from the infeasibility traces of converged vs failed starts
+    the best primal infeasibility so far (max |g| of the match point; an inequality only where it is violated)
+    is above ``stall_floor`` and above ``stall_factor`` × the best up to iteration i − W.  The rule was chosen from the infeasibility traces of converged vs failed starts
     (docs/performance.md) and is off by default.
     """
 

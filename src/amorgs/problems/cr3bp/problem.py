@@ -20,6 +20,7 @@ from amorgs.problems.cr3bp.propagation import independent_defect
 from amorgs.problems.cr3bp.transcription import (
     N_SEGMENTS,
     TAU_COAST_MAX,
+    TAU_S_MAX,
     ForwardBackwardTranscription,
     variable_names,
 )
@@ -40,7 +41,7 @@ class LowThrustTransfer:
         self.variable_names = variable_names(N_SEGMENTS)
         m0 = float(self.initial_state[6])
         self.lower = np.array([0.0, 0.0, 0.0, 0.0] + [0.0, -math.pi / 2, 0.0] * N_SEGMENTS)
-        self.upper = np.array([40.0, TAU_COAST_MAX, TAU_COAST_MAX, m0] + [2 * math.pi, math.pi / 2, 1.0] * N_SEGMENTS)
+        self.upper = np.array([TAU_S_MAX, TAU_COAST_MAX, TAU_COAST_MAX, m0] + [2 * math.pi, math.pi / 2, 1.0] * N_SEGMENTS)
 
     @classmethod
     def from_resource(cls, path=None) -> LowThrustTransfer:

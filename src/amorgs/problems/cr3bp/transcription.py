@@ -42,6 +42,8 @@ from amorgs.solvers.options import TranscriptionOptions
 
 N_SEGMENTS = 20
 CORE_SIZE = 4 + 3 * N_SEGMENTS
+#: Upper bound of the thrust-arc duration τ_s (TU, spec §5).
+TAU_S_MAX = 40.0
 #: Upper bound of the coast durations τ_i and τ_f (TU, spec §5); the coast interpolants span [0, TAU_COAST_MAX].
 TAU_COAST_MAX = 15.0
 
@@ -238,12 +240,12 @@ class ForwardBackwardTranscription:
 
     # -- bounds and conversions -----------------------------------------------------------------------
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Box bounds on w: spec §5 on the core (azimuths free; Cartesian u in [−1, 1]³), node masses in
-        [0, m₀], others free."""
+        """Box bounds on w: spec §5 on the core (azimuths free; a Cartesian direction v in [−1, 1]³), node
+        masses in [0, m₀], others free."""
         lo = np.full(self.n_w, -np.inf)
         hi = np.full(self.n_w, np.inf)
         lo[:4] = [0.0, 0.0, 0.0, 0.0]
-        hi[:4] = [40.0, TAU_COAST_MAX, TAU_COAST_MAX, self.m0_t]
+        hi[:4] = [TAU_S_MAX, TAU_COAST_MAX, TAU_COAST_MAX, self.m0_t]
         for k in range(self.n):
             if self.cartesian:
                 lo[4 + 4 * k: 7 + 4 * k], hi[4 + 4 * k: 7 + 4 * k] = -1.0, 1.0  # v
@@ -292,13 +294,14 @@ class ForwardBackwardTranscription:
     def to_stored(self, w: np.ndarray) -> np.ndarray:
         """w → stored 64-vector: m_f in kg, θ wrapped to [0, 2π), τ_s/τ_i/τ_f, m_f, φ and ρ clipped to their bounds.
 
+        Cartesian controls are stored as θ, φ of v and the throttle ρ·min(‖v‖, 1) (:meth:`_spherical_core`).
         IPOPT may return values a few 1e-9 outside the box (its bound relaxation); clipping keeps every
         stored solution a valid warm start for ``check_guess``.
         """
         x = np.asarray(w, float)[:self.core_size].copy()
         if self.cartesian:
             x = self._spherical_core(x)
-        x[:3] = np.clip(x[:3], 0.0, [40.0, TAU_COAST_MAX, TAU_COAST_MAX])
+        x[:3] = np.clip(x[:3], 0.0, [TAU_S_MAX, TAU_COAST_MAX, TAU_COAST_MAX])
         x[3] = min(max(x[3] * 1000.0, 0.0), self.m0_kg)
         x[4::3] = np.mod(x[4::3], 2 * math.pi)
         x[5::3] = np.clip(x[5::3], -math.pi / 2, math.pi / 2)
