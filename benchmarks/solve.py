@@ -14,6 +14,7 @@ writes the table to ``docs/performance.md`` (section between the BENCHMARK marke
     python benchmarks/solve.py --coast --starts 200 --alphas 0.1 1.0 --jobs 2 --max-wall-s 600   # issue 22
     python benchmarks/solve.py --controls --starts 200 --alphas 0.1 1.0 --jobs 2 --max-wall-s 600   # Cartesian controls
     python benchmarks/solve.py --controls --starts 100 --alphas 0.2 0.3 0.5 --jobs 2 --max-wall-s 600 --section controls_switch
+    python benchmarks/solve.py --aug --starts 200 --alphas 1.0 0.1 --jobs 2 --max-wall-s 600   # extended L-BFGS system
 
 ``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
 the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
@@ -146,10 +147,20 @@ CONTROLS = {
     CONTROLS_DEFAULT: _LIBRARY_SOLVER,
     "library solver, Cartesian controls (v, ρ), ‖v‖ ≤ 1": _with(_LIBRARY_SOLVER, transcription={"controls": "cartesian"}),
 }
+#: ``--aug``: the library config's solver (generation 3) against the same with IPOPT's extended L-BFGS system
+#: (``lbfgs_aug_solver = 'extended'``: cheaper iterations; it fails re-solves from converged solutions, so it is
+#: a candidate for cold starts only), on the same uniform starts.
+AUG_DEFAULT = "library config (generation 3: Sherman–Morrison L-BFGS, history 6)"
+AUG = {
+    AUG_DEFAULT: DEFAULTS["library config (L-BFGS history 6, Cartesian controls below α = 0.25)"],
+    "library config + extended L-BFGS system": _with(
+        DEFAULTS["library config (L-BFGS history 6, Cartesian controls below α = 0.25)"], lbfgs_aug_solver="extended"),
+}
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.
 PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT), "coast": (COAST, COAST_DEFAULT),
-          "default": (DEFAULTS, DEFAULT_REFERENCE), "controls": (CONTROLS, CONTROLS_DEFAULT)}
+          "default": (DEFAULTS, DEFAULT_REFERENCE), "controls": (CONTROLS, CONTROLS_DEFAULT),
+          "aug": (AUG, AUG_DEFAULT)}
 TOF_BAND_TU = 6.3
 BOOTSTRAP = 10_000
 
@@ -321,6 +332,8 @@ def main() -> None:
                     help="the default vs interpolated coasts + extended L-BFGS system (issue 22), same starts")
     ap.add_argument("--controls", action="store_true",
                     help="library solver: spherical (θ, φ, ρ) vs Cartesian controls on the same starts (issue 22)")
+    ap.add_argument("--aug", action="store_true",
+                    help="library solver: Sherman–Morrison vs the extended L-BFGS system on the same starts (issue 22)")
     ap.add_argument("--section", default=None,
                     help="name of the docs/performance.md block to write (default: the mode's own, e.g. controls)")
     ap.add_argument("--max-wall-s", type=float, default=None,
@@ -345,7 +358,7 @@ def main() -> None:
         return
 
     paired = ("steps" if args.steps else "quasi_newton" if args.quasi_newton else "coast" if args.coast
-              else "controls" if args.controls else None if args.variants or args.compare or args.ipopt_screen else "default")
+              else "controls" if args.controls else "aug" if args.aug else None if args.variants or args.compare or args.ipopt_screen else "default")
     variants = (VARIANTS if args.variants else COMPARE if args.compare else PAIRED[paired][0] if paired
                 else IPOPT_SCREEN)
     if paired:  # α-major, so that the runs compared on the same starts run at about the same time
