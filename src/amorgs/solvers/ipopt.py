@@ -185,16 +185,17 @@ class IpoptSolver:
             # The monitor is a Python callback at every iteration (≈ 0.15 ms of ≈ 6, docs/performance.md):
             # attached only when the stall abort is on.  It never changes the iterates.
             monitor = None
+            g_bounds = tr.constraint_bounds()
             if o.stall_window > 0:
-                monitor = StallMonitor(f"{p.name}_monitor", tr.n_w, tr.constraint_bounds(), 1, o.stall_window,
-                                       o.stall_factor, o.stall_floor)
+                monitor = StallMonitor(f"{p.name}_monitor", tr.n_w, g_bounds, 1, o.stall_window, o.stall_factor,
+                                       o.stall_floor)
                 opts["iteration_callback"] = monitor
             identity = {"transcription": tr_opts.hash_dict(), **p.code_identity()}
             nlpsol, jit_dir = ipopt_nlpsol(p.name, tr.nlp, opts, o.compile, o.compile_flags, o.hessian, identity)
             if jit_dir is not None:
                 self._jit_dirs.append(jit_dir)
             self._monitors[tr_opts] = monitor
-            self._built[tr_opts] = (tr, nlpsol, *tr.bounds())
+            self._built[tr_opts] = (tr, nlpsol, *tr.bounds(), *g_bounds)
             self.build_s += time.perf_counter() - t0
         return self._built[tr_opts]
 
@@ -203,9 +204,8 @@ class IpoptSolver:
         p = self.problem
         alpha = check_alpha(alpha, p.alpha_range, p.name)
         x0 = p.check_guess(x0)
-        tr, nlpsol, lbw, ubw = self._nlp(alpha)
+        tr, nlpsol, lbw, ubw, lbg, ubg = self._nlp(alpha)
         w0 = tr.to_internal(x0, alpha)
-        lbg, ubg = tr.constraint_bounds()
         monitor = self._monitors[self.options.transcription.for_alpha(alpha)]
         if monitor is not None:
             monitor.reset()

@@ -13,7 +13,7 @@ Internally the NLP variable ``w`` is this vector with m_f in tonnes (every state
 unbounded (wrapped to [0, 2π) on the way out) — or, with ``controls = 'cartesian'``, with each (θ_k, φ_k, ρ_k)
 replaced by (v_x, v_y, v_z, ρ)_k, a direction v ∈ [−1, 1]³ with ‖v‖² ≤ 1 (one inequality per segment after the
 match defects) and the throttle ρ: thrust ρ·v, fuel flow ρ, so ‖v‖ = 1 wherever ρ > 0 at a fuel optimum
-(84 core entries for N = 20) — followed — with ``multiple_shooting`` — by the 7-states at the
+(84 core entries for N = 20). With ``multiple_shooting`` the core is followed by the 7-states at the
 start of every sub-arc ("piece") after the first on each side, so that each piece is integrated
 independently: the constraint Jacobian and the Lagrangian Hessian become block-sparse and an exact Hessian
 is cheap.  Every piece is integrated with a fixed number of 8th-order Runge–Kutta steps (the DOP853
@@ -37,6 +37,7 @@ import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop853
 
 from amorgs.problems.cr3bp import constants as K
+from amorgs.problems.cr3bp.controls import thrust_vectors
 from amorgs.problems.cr3bp.propagation import ballistic_flow
 from amorgs.solvers.options import TranscriptionOptions
 
@@ -277,14 +278,16 @@ class ForwardBackwardTranscription:
     def _cartesian_core(self, core: np.ndarray) -> np.ndarray:
         """Stored-layout core (m_f in tonnes) → the Cartesian internal core (v = û, ρ)."""
         th, ph, rho = core[4::3], core[5::3], core[6::3]
-        u = np.stack([np.cos(ph) * np.cos(th), np.cos(ph) * np.sin(th), np.sin(ph), rho], axis=1)
+        u = np.column_stack([thrust_vectors(th, ph, 1.0), rho])
         return np.concatenate([core[:4], u.ravel()])
 
     @staticmethod
     def _spherical_core(w_core: np.ndarray) -> np.ndarray:
         """Cartesian internal core → stored layout: θ, φ of v (0 where v = 0) and the throttle ρ·‖v‖, so that
         the stored thrust ρ_stored·û is the solved ρ·v exactly (the fuel flow differs by ρ·(1 − ‖v‖), which is
-        zero at a fuel optimum)."""
+        zero at a fuel optimum).  Unlike :func:`~amorgs.problems.cr3bp.controls.spherical_controls` (angles of
+        the thrust vector, 0 where it vanishes) the angles are v's even where ρ = 0, so a warm start from the
+        stored vector gets the solver's direction back."""
         u = w_core[4:].reshape(-1, 4)
         th = np.arctan2(u[:, 1], u[:, 0])
         ph = np.arctan2(u[:, 2], np.hypot(u[:, 0], u[:, 1]))
