@@ -136,11 +136,20 @@ def test_the_stall_monitor_is_attached_only_when_on_and_never_changes_the_iterat
     assert solver.last_trace == [] and len(watched.last_trace) >= monitored.iterations
 
 
-def test_solution_lies_inside_the_box_and_is_a_valid_warm_start(problem, solver, solution):
+#: IPOPT started *at* a solution: keep the start's bound-active controls where they are (IPOPT's default pushes
+#: them 1e-2 inside the box and restarts the barrier; from some solutions, e.g. a 429.2 kg one with partial
+#: throttles found on an AMD EPYC, such a re-solve wanders off and hits 400 iterations) and start the barrier small.
+AT_A_SOLUTION = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8, "bound_mult_init_method": "mu-based"}
+
+
+def test_solution_lies_inside_the_box_and_is_a_valid_warm_start(problem, solution):
+    """The stored solution is inside the spec's box, and IPOPT started at it converges at once to itself."""
     x = problem.check_guess(solution.x)
     assert np.all(x >= problem.lower) and np.all(x <= problem.upper)
-    again = solver.solve(x, 1.0)  # warm start from the stored solution converges at once
+    warm = problem.make_local_solver(IpoptOptions(max_iter=400, ipopt_options=AT_A_SOLUTION))
+    again = warm.solve(x, 1.0)
     assert again.converged and again.iterations <= 30
+    assert again.x[3] == pytest.approx(x[3], abs=1e-3)  # kg
 
 
 def test_cartesian_controls_solve_to_a_verified_solution_in_the_stored_layout(problem, solution):
@@ -154,6 +163,8 @@ def test_cartesian_controls_solve_to_a_verified_solution_in_the_stored_layout(pr
     assert cartesian.transcription(1.0).n_g == 7 + 20
     record = cartesian.solve(problem.check_guess(solution.x), 1.0)
     assert record.converged and record.solver_success and record.defect <= 1e-8 and record.verify_defect <= 1e-5
-    assert len(cartesian.last_trace) >= record.iterations and cartesian.last_trace[-1] <= 1e-8
+    # The last iterate's infeasibility: ≤ constr_viol_tol (1e-8) plus IPOPT's bound relaxation (bound_relax_factor
+    # 1e-8: a ‖v‖² ≤ 1 row may end past its bound — 1.6e-8 seen with the match defect at 1.5e-10; to_stored clips it).
+    assert len(cartesian.last_trace) >= record.iterations and cartesian.last_trace[-1] <= 2e-8
     assert record.x[3] == pytest.approx(solution.x[3], abs=0.5)
     problem.check_guess(record.x)
