@@ -15,6 +15,7 @@ writes the table to ``docs/performance.md`` (section between the BENCHMARK marke
     python benchmarks/solve.py --controls --starts 200 --alphas 0.1 1.0 --jobs 2 --max-wall-s 600   # Cartesian controls
     python benchmarks/solve.py --controls --starts 100 --alphas 0.2 0.3 0.5 --jobs 2 --max-wall-s 600 --section controls_switch
     python benchmarks/solve.py --aug --starts 200 --alphas 1.0 0.1 --jobs 2 --max-wall-s 600   # extended L-BFGS system
+    python benchmarks/solve.py --mumps --starts 200 --alphas 1.0 0.1 --jobs 2 --max-wall-s 600  # MUMPS scaling off
 
 ``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
 the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
@@ -156,11 +157,23 @@ AUG = {
     "library config + extended L-BFGS system": _with(
         DEFAULTS["library config (L-BFGS history 6, Cartesian controls below α = 0.25)"], lbfgs_aug_solver="extended"),
 }
+#: ``--mumps``: the library config's solver (generation 3) against the same without MUMPS's scaling of the KKT
+#: system (``mumps_scaling = mumps_permuting_scaling = 0``: a 71-row system with an identity-like L-BFGS block
+#: needs none, and computing it was ≈ 40 % of IPOPT's own time per iteration), and with the extended L-BFGS
+#: system on top, on the same uniform starts.
+MUMPS_DEFAULT = AUG_DEFAULT
+_NO_MUMPS_SCALING = {"mumps_scaling": 0, "mumps_permuting_scaling": 0}
+MUMPS = {
+    MUMPS_DEFAULT: AUG[AUG_DEFAULT],
+    "library config, MUMPS scaling off": _with(AUG[AUG_DEFAULT], ipopt_options=_NO_MUMPS_SCALING),
+    "library config, MUMPS scaling off + extended L-BFGS system": _with(
+        AUG[AUG_DEFAULT], ipopt_options=_NO_MUMPS_SCALING, lbfgs_aug_solver="extended"),
+}
 #: The paired comparisons (variants, reference): the same starts for each, a paired bootstrap of the
 #: throughput ratio and start-by-start TOF bands against the reference.
 PAIRED = {"steps": (STEPS, STEPS_DEFAULT), "quasi_newton": (QUASI_NEWTON, QN_DEFAULT), "coast": (COAST, COAST_DEFAULT),
           "default": (DEFAULTS, DEFAULT_REFERENCE), "controls": (CONTROLS, CONTROLS_DEFAULT),
-          "aug": (AUG, AUG_DEFAULT)}
+          "aug": (AUG, AUG_DEFAULT), "mumps": (MUMPS, MUMPS_DEFAULT)}
 TOF_BAND_TU = 6.3
 BOOTSTRAP = 10_000
 
@@ -183,6 +196,7 @@ def summarize(df: pd.DataFrame) -> dict:
         "median iters converged": float(conv.iterations.median()) if len(conv) else float("nan"),
         "total iters": int(iters),
         "ms/iter": 1000 * df.cpu_s.sum() / max(iters, 1),
+        "median ms/iter": 1000 * float((df.cpu_s / df.iterations)[df.iterations > 0].median()),
         "verified per core-hour": len(conv) / cpu_h if cpu_h else float("nan"),
         "best m_f (kg)": conv.m_f.max() if len(conv) else float("nan"),
         "TOF of converged (TU)": q(conv.tau_s + conv.tau_i + conv.tau_f),
@@ -334,6 +348,8 @@ def main() -> None:
                     help="library solver: spherical (θ, φ, ρ) vs Cartesian controls on the same starts (issue 22)")
     ap.add_argument("--aug", action="store_true",
                     help="library solver: Sherman–Morrison vs the extended L-BFGS system on the same starts (issue 22)")
+    ap.add_argument("--mumps", action="store_true",
+                    help="library config vs the same without MUMPS scaling (and with the extended L-BFGS system)")
     ap.add_argument("--section", default=None,
                     help="name of the docs/performance.md block to write (default: the mode's own, e.g. controls)")
     ap.add_argument("--max-wall-s", type=float, default=None,
@@ -358,7 +374,7 @@ def main() -> None:
         return
 
     paired = ("steps" if args.steps else "quasi_newton" if args.quasi_newton else "coast" if args.coast
-              else "controls" if args.controls else "aug" if args.aug else None if args.variants or args.compare or args.ipopt_screen else "default")
+              else "controls" if args.controls else "aug" if args.aug else "mumps" if args.mumps else None if args.variants or args.compare or args.ipopt_screen else "default")
     variants = (VARIANTS if args.variants else COMPARE if args.compare else PAIRED[paired][0] if paired
                 else IPOPT_SCREEN)
     if paired:  # α-major, so that the runs compared on the same starts run at about the same time
