@@ -164,7 +164,8 @@ def test_cartesian_controls_solve_to_a_verified_solution_in_the_stored_layout(pr
     record = cartesian.solve(problem.check_guess(solution.x), 1.0)
     assert record.converged and record.solver_success and record.defect <= 1e-8 and record.verify_defect <= 1e-5
     # The last iterate's infeasibility: ≤ constr_viol_tol (1e-8) plus IPOPT's bound relaxation (bound_relax_factor
-    # 1e-8: a ‖v‖² ≤ 1 row may end past its bound — 1.6e-8 seen with the match defect at 1.5e-10; to_stored clips it).
+    # 1e-8: a ‖v‖² ≤ 1 row may end past its bound — 1.6e-8 seen with the match defect at 1.5e-10; to_stored
+    # clips it).
     assert len(cartesian.last_trace) >= record.iterations and cartesian.last_trace[-1] <= 2e-8
     assert record.x[3] == pytest.approx(solution.x[3], abs=0.5)
     problem.check_guess(record.x)
