@@ -1,9 +1,9 @@
 """AmorGS end to end on De Jong's 5th function (paper Sec. V.A): BFGS minima → CVAE → samples at unseen α.
 
-Settings (chosen so that this passes reliably on one CPU core in ≈ 15–20 s; see the report in the commit):
+Settings (chosen so that this passes reliably on one CPU core in ≈ 25–30 s; see the report in the commit):
 26 training α (every other point of the grid iπ/100), 16 uniform BFGS starts each (416 solves, ≈ 3 s),
 minima kept when converged with J ≤ 10; CVAE preset ``small`` (Table 3 encoder/decoder, K = 2, 2-D latent,
-(64, 64) prior MLPs), full-batch Adam, lr 5e-3, 750 epochs.  Small mini-batches (64) with batch norm
+(64, 64) prior MLPs), full-batch Adam, lr 5e-3, 1500 epochs.  Small mini-batches (64) with batch norm
 trained far worse in the same time; the (512, 512, 512) prior of Table 3 is ≈ 5× slower per step.
 1500 epochs: 0.977–0.986 within radius 3 and 8/8 minima covered at the four test α, against the thresholds
 0.9 / 0.8 and 8 / 7.  Training is not bit-reproducible across CPUs (torch's kernels follow the instruction set):

@@ -21,9 +21,10 @@ tableau), time-scaled so that the step length follows the piece length: thrust s
 ``steps_per_segment`` steps each.  Only position and velocity are integrated: the fuel flow is constant over a
 piece, so the fuel mass is linear in time and exact (what RK8 on the 7-state gives).  The two coasts start
 from fixed states (ξ₀, and ξ_f with a mass that a coast does not change), so each is a function of one scalar
-(τ_i, τ_f ∈ [0, 15] TU): with ``coast = 'interpolant'`` they are read off a cubic B-spline of the ballistic flow sampled once (DOP853, rtol 1e-13,
-every ``coast_grid_step`` TU; :func:`~amorgs.problems.cr3bp.propagation.ballistic_flow`) — one piece each, no
-integration at all per evaluation; with ``coast = 'rk8'`` they are cut into ``coast_pieces`` pieces of
+(τ_i, τ_f ∈ [0, 15] TU): with ``coast = 'interpolant'`` they are read off a cubic B-spline of the ballistic
+flow sampled once (DOP853, rtol 1e-13, every ``coast_grid_step`` TU;
+:func:`~amorgs.problems.cr3bp.propagation.ballistic_flow`) — one piece each, no integration at all per evaluation;
+with ``coast = 'rk8'`` they are cut into ``coast_pieces`` pieces of
 ``steps_per_coast / coast_pieces`` RK8 steps.  Those choices are
 :class:`~amorgs.solvers.options.TranscriptionOptions` (part of the solver's options, since they change the
 solve but not the stored vector).
