@@ -7,6 +7,12 @@ objective and its gradient, and the rest: IPOPT's own work (the KKT factorisatio
 Prints the table and writes it to ``docs/performance.md`` (section ``iteration``).  Reproduce with::
 
     python benchmarks/iteration.py --starts 12 --alphas 1.0 0.1
+    python benchmarks/iteration.py --per-call --alphas 1.0 0.1      # section iteration_calls
+
+``--per-call`` times the two functions IPOPT calls most, the constraints and the constraint Jacobian
+(``nlp_g`` and ``nlp_jac_g`` of the built solver, compiled as the solver runs them), per call at ``--starts``
+uniform points (best of 5 rounds of 10 calls per point, CPU time): the measure of a change to how they are
+evaluated, run on the code before and after it.
 
 The solves are deterministic, so the iterations repeat to the unit from run to run; the times move with the load.
 """
@@ -15,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 import numpy as np
 
@@ -53,14 +60,49 @@ def profile(options, alpha: float, guesses: np.ndarray) -> dict:
             "IPOPT's own": ms(total - jac - g - f)}
 
 
+def per_call(options, alpha: float, points: np.ndarray) -> dict:
+    """CPU ms per call of the built solver's ``nlp_g`` and ``nlp_jac_g`` at ``points`` (stored layout)."""
+    problem = get_problem("cr3bp")
+    solver = problem.make_local_solver(options)
+    tr, nlpsol = solver._nlp(alpha)[:2]
+    w = [tr.to_internal(x, alpha) for x in points]
+    row = {"alpha": alpha, "points": len(points)}
+    for name in ("nlp_g", "nlp_jac_g"):
+        f = nlpsol.get_function(name)
+        for x in w:
+            f(x, alpha)
+        rounds = []
+        for _ in range(5):
+            t0 = time.process_time()
+            for x in w:
+                for _ in range(10):
+                    f(x, alpha)
+            rounds.append((time.process_time() - t0) / (10 * len(w)))
+        row[f"{name} (ms/call)"] = 1000 * min(rounds)
+    return row
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--starts", type=int, default=12)
     ap.add_argument("--alphas", type=float, nargs="+", default=[1.0, 0.1])
     ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--per-call", action="store_true", help="time nlp_g and nlp_jac_g per call instead of solves")
     args = ap.parse_args()
     cmd = "python benchmarks/iteration.py " + " ".join(sys.argv[1:])
     problem = get_problem("cr3bp")
+    if args.per_call:
+        rows = []
+        for alpha in args.alphas:
+            points = problem.sample_uniform(alpha, args.starts, np.random.default_rng(args.seed))
+            for label, options in DEFAULTS.items():
+                rows.append({"solver": label, **per_call(options, alpha, points)})
+                print(rows[-1], flush=True)
+        text = (f"Command: `{cmd}` — {machine()}; seed {args.seed}; one process; CPU ms per call, best of 5 rounds "
+                "of 10 calls at each point.\n\n" + markdown(rows))
+        print(text)
+        write_section("iteration_calls", text)
+        return
     rows = []
     for alpha in args.alphas:
         guesses = problem.sample_uniform(alpha, args.starts, np.random.default_rng(args.seed))

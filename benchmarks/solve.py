@@ -16,6 +16,12 @@ writes the table to ``docs/performance.md`` (section between the BENCHMARK marke
     python benchmarks/solve.py --controls --starts 100 --alphas 0.2 0.3 0.5 --jobs 2 --max-wall-s 600 --section controls_switch
     python benchmarks/solve.py --aug --starts 200 --alphas 1.0 0.1 --jobs 2 --max-wall-s 600   # extended L-BFGS system
     python benchmarks/solve.py --mumps --starts 200 --alphas 1.0 0.1 --jobs 2 --max-wall-s 600  # MUMPS scaling off
+    python benchmarks/solve.py --library-only --starts 200 --alphas 1.0 0.1 --jobs 2 --max-wall-s 600 \
+        --before /tmp/before.parquet --section rk8_kernel   # a code change: the same command's raw rows before it
+
+``--before RAW`` pairs this run with the raw rows (``--raw``) of the same command run on the code before a change
+(another checkout; the seed fixes the starts): each variant is compared with itself "before", with the paired
+bootstrap and the per-band table below.  ``--library-only`` runs the library config's solver alone.
 
 ``--variants`` and ``--compare`` also write a start-by-start table of which starts converge with and without
 the stall abort, per TOF band (6.3 TU wide, centred on multiples of 6.3 TU — the hyperplane spacing): the
@@ -357,6 +363,9 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=1, help="cells (variant × α) run side by side, one worker each")
     ap.add_argument("--scaling", action="store_true", help="measure 1 → 2 worker scaling")
     ap.add_argument("--raw", type=Path, default=None, help="also save the raw rows as Parquet")
+    ap.add_argument("--before", type=Path, default=None,
+                    help="raw rows (--raw) of this command on the code before a change: compare start by start")
+    ap.add_argument("--library-only", action="store_true", help="the default block's library config alone")
     args = ap.parse_args()
     cmd = "python benchmarks/solve.py " + " ".join(sys.argv[1:])
 
@@ -377,6 +386,8 @@ def main() -> None:
               else "controls" if args.controls else "aug" if args.aug else "mumps" if args.mumps else None if args.variants or args.compare or args.ipopt_screen else "default")
     variants = (VARIANTS if args.variants else COMPARE if args.compare else PAIRED[paired][0] if paired
                 else IPOPT_SCREEN)
+    if args.library_only:
+        variants = {k: v for k, v in variants.items() if k.startswith("library config")}
     if paired:  # α-major, so that the runs compared on the same starts run at about the same time
         cells = [(label, opts, alpha) for alpha in args.alphas for label, opts in variants.items()]
     else:
@@ -411,7 +422,19 @@ def main() -> None:
     if abort_rows:
         text += ("\nStall abort, start by start on the same starts, per TOF band of the converged solution "
                  "(see `abort_table`):\n\n" + markdown(abort_rows))
-    if paired:
+    if args.before:
+        before = pd.read_parquet(args.before)
+        before["variant"] = before.variant + ", before"
+        all_raw = pd.concat([all_raw, before])
+        pairs = {k: f"{k}, before" for k in variants}
+        text += (f"\nThe same command on the code before the change (`{args.before.name}`), start by start: ratio "
+                 f"of verified per core-hour (after / before), 95 % interval from a paired bootstrap over starts "
+                 f"({BOOTSTRAP} resamples, seed {args.seed}):\n\n"
+                 + markdown(ratio_bootstrap(all_raw, pairs, args.seed))
+                 + "\nPer TOF band of the converged solution (6.3 TU; `band_table`):\n\n"
+                 + markdown(band_table(all_raw, pairs, "converged, before", "converged, after", with_variant=True,
+                                       with_moves=True)))
+    elif paired and len(variants) > 1:
         reference = PAIRED[paired][1]
         pairs = {k: reference for k in variants if k != reference}
         text += ("\nRatio of verified per core-hour (variant / default) on the same starts; 95 % interval from "

@@ -35,14 +35,16 @@ def cpu_identity() -> str:
     return f"{model}|{hashlib.sha256(flags.encode()).hexdigest()[:16]}"
 
 
-def compiled_library_path(name: str, nlp: dict, hessian: str, identity: dict, flags: str) -> Path:
+def compiled_library_path(name: str, nlp: dict, hessian: str, identity: dict, flags: str,
+                          sources: tuple[Path, ...] = ()) -> Path:
     """Where the compile cache keeps the library of ``nlp`` (see :func:`compiled_nlp_library`).
 
     ``identity`` names what the problem compiles into the code (for the CR3BP: transcription options and the
     boundary states, embedded as constants); the key adds a SHA-256 of the NLP's own expression graph (CasADi's
     serialisation of f and g, ≈ 0.1 s: a change of the code that builds the NLP can never load a stale
     library), the Hessian mode, the CasADi version, the CPU architecture and the gcc flags (plus the CPU model
-    and instruction-set flags when they include ``-march=native``).
+    and instruction-set flags when they include ``-march=native``), and a SHA-256 of every C source compiled in
+    (``sources``: the external functions the NLP calls).
     """
     graph = ca.Function("graph", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]]).serialize()
     key = json.dumps(
@@ -54,6 +56,7 @@ def compiled_library_path(name: str, nlp: dict, hessian: str, identity: dict, fl
             "machine": platform.machine(),
             "flags": flags,
             "cpu": cpu_identity() if "native" in flags else "",
+            "sources": [hashlib.sha256(Path(src).read_bytes()).hexdigest() for src in sources],
             "format": 1,
         },
         sort_keys=True,
@@ -61,12 +64,14 @@ def compiled_library_path(name: str, nlp: dict, hessian: str, identity: dict, fl
     return cache_dir() / f"{name}_nlp_{hashlib.sha256(key.encode()).hexdigest()[:16]}.so"
 
 
-def compiled_nlp_library(name: str, nlp: dict, hessian: str, identity: dict, flags: str) -> Path:
+def compiled_nlp_library(name: str, nlp: dict, hessian: str, identity: dict, flags: str,
+                         sources: tuple[Path, ...] = ()) -> Path:
     """Shared library with the functions IPOPT needs for ``nlp``, generated and compiled once per machine
-    (cache key: :func:`compiled_library_path`).  Concurrent workers may race to build it; each compiles into a
-    private temp file and ``os.replace`` makes the winner atomic.
+    (cache key: :func:`compiled_library_path`), with the C ``sources`` of the external functions the NLP calls
+    compiled in.  Concurrent workers may race to build it; each compiles into a private temp file and
+    ``os.replace`` makes the winner atomic.
     """
-    target = compiled_library_path(name, nlp, hessian, identity, flags)
+    target = compiled_library_path(name, nlp, hessian, identity, flags, sources)
     if target.is_file():
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -80,7 +85,8 @@ def compiled_nlp_library(name: str, nlp: dict, hessian: str, identity: dict, fla
             os.chdir(cwd)
         built = Path(tmp) / target.name
         subprocess.run(
-            ["gcc", *flags.split(), "-fPIC", "-shared", str(Path(tmp) / f"{name}_nlp.c"), "-o", str(built), "-lm"],
+            ["gcc", *flags.split(), "-fPIC", "-shared", str(Path(tmp) / f"{name}_nlp.c"), *map(str, sources),
+             "-o", str(built), "-lm"],
             check=True,
             capture_output=True,
         )
@@ -89,21 +95,26 @@ def compiled_nlp_library(name: str, nlp: dict, hessian: str, identity: dict, fla
 
 
 def ipopt_nlpsol(
-    name: str, nlp: dict, opts: dict, mode: str, flags: str, hessian: str, identity: dict
+    name: str, nlp: dict, opts: dict, mode: str, flags: str, hessian: str, identity: dict,
+    sources: tuple[Path, ...] = (),
 ) -> tuple[ca.Function, tempfile.TemporaryDirectory | None]:
     """An IPOPT ``nlpsol`` for ``nlp`` with CasADi options ``opts``, compiled per ``mode``.
 
     ``mode``: ``"cache"`` (:func:`compiled_nlp_library`), ``"jit"`` (compiled in this process; the returned
-    temp dir holds the build and must live as long as the solver) or ``"none"``.
+    temp dir holds the build and must live as long as the solver) or ``"none"``.  ``sources``: the C files of
+    the external functions that ``nlp`` calls, compiled into the NLP's code (``cache``, ``jit``); CasADi's
+    virtual machine (``none``) calls them in their own libraries.
     """
     if mode == "cache":
-        library = compiled_nlp_library(name, nlp, hessian, identity, flags)
+        library = compiled_nlp_library(name, nlp, hessian, identity, flags, sources)
         return ca.nlpsol(name, "ipopt", str(library), opts), None
     if mode == "jit":
         # CasADi writes the JIT source into the working directory: build inside a private temp dir.
         jit_dir = tempfile.TemporaryDirectory(prefix="amorgs-jit-")
         opts = {**opts, "jit": True, "jit_cleanup": False, "compiler": "shell",
-                "jit_options": {"flags": flags.split(), "verbose": False, "directory": jit_dir.name}}
+                "jit_options": {"flags": flags.split(), "verbose": False, "directory": jit_dir.name,
+                                # the link step compiles the external functions' sources in, with the same flags
+                                "linker_flags": [*flags.split(), "-fPIC", *map(str, sources)]}}
         cwd = os.getcwd()
         try:
             os.chdir(jit_dir.name)

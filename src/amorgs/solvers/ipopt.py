@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 from typing import Protocol
 
 import casadi as ca
@@ -33,6 +34,7 @@ class Transcription(Protocol):
     nlp: dict  # {"x": w, "p": α, "f": objective, "g": constraints (bounds: constraint_bounds)}
     n_w: int
     n_g: int
+    c_sources: tuple[Path, ...]  # C files of the external functions ``nlp`` calls (compiled in with it)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]: ...
 
@@ -191,7 +193,8 @@ class IpoptSolver:
                                        o.stall_floor)
                 opts["iteration_callback"] = monitor
             identity = {"transcription": tr_opts.hash_dict(), **p.code_identity()}
-            nlpsol, jit_dir = ipopt_nlpsol(p.name, tr.nlp, opts, o.compile, o.compile_flags, o.hessian, identity)
+            nlpsol, jit_dir = ipopt_nlpsol(p.name, tr.nlp, opts, o.compile, o.compile_flags, o.hessian, identity,
+                                           tr.c_sources)
             if jit_dir is not None:
                 self._jit_dirs.append(jit_dir)
             self._monitors[tr_opts] = monitor

@@ -19,7 +19,9 @@ independently: the constraint Jacobian and the Lagrangian Hessian become block-s
 is cheap.  Every piece is integrated with a fixed number of 8th-order Runge–Kutta steps (the DOP853
 tableau), time-scaled so that the step length follows the piece length: thrust segments take
 ``steps_per_segment`` steps each.  Only position and velocity are integrated: the fuel flow is constant over a
-piece, so the fuel mass is linear in time and exact (what RK8 on the 7-state gives).  The two coasts start
+piece, so the fuel mass is linear in time and exact (what RK8 on the 7-state gives).  The step and its Jacobian
+are C code that CasADi calls (:mod:`~amorgs.problems.cr3bp.rk8_kernel`: the constraint Jacobian in about half
+the time of CasADi's own reverse sweeps).  The two coasts start
 from fixed states (ξ₀, and ξ_f with a mass that a coast does not change), so each is a function of one scalar
 (τ_i, τ_f ∈ [0, 15] TU): with ``coast = 'interpolant'`` they are read off a cubic B-spline of the ballistic
 flow sampled once (DOP853, rtol 1e-13, every ``coast_grid_step`` TU;
@@ -36,9 +38,9 @@ import math
 
 import casadi as ca
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as dop853
 
 from amorgs.problems.cr3bp import constants as K
+from amorgs.problems.cr3bp import rk8_kernel
 from amorgs.problems.cr3bp.controls import thrust_vectors
 from amorgs.problems.cr3bp.propagation import ballistic_flow
 from amorgs.solvers.options import TranscriptionOptions
@@ -59,60 +61,11 @@ def variable_names(n_segments: int = N_SEGMENTS) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _rhs_sx() -> ca.Function:
-    """(ṙ, v̇) of the internal 6-state (DU, VU) at fuel mass ``m`` (tonnes), given the thrust direction scaled by
-    the throttle, ``u3`` = ρ·û, and the maximum thrust per tonne ``a`` (t·DU/TU²; divided by the wet mass).
-
-    Written with three divisions (two gravity terms, one thrust acceleration) where the textbook form has five:
-    divisions are the dearest operations of the step and of its reverse sweeps (≈ 6 % of the constraint
-    Jacobian, docs/performance.md); the function is the same, only the rounding differs.
-    """
-    s = ca.SX.sym("s", 6)
-    m = ca.SX.sym("m")
-    u = ca.SX.sym("u", 3)
-    a = ca.SX.sym("a")
-    mu = K.MU
-    x, y, z, vx, vy, vz = ca.vertsplit(s)
-    dx1, dx2 = x + mu, x - 1 + mu
-    r1sq = dx1**2 + y**2 + z**2
-    r2sq = dx2**2 + y**2 + z**2
-    k1 = (1 - mu) / (r1sq * ca.sqrt(r1sq))
-    k2 = mu / (r2sq * ca.sqrt(r2sq))
-    thrust_acc = a / (K.DRY_MASS_KG / 1000 + m)  # per unit of u3
-    ax = x - k1 * dx1 - k2 * dx2 + 2 * vy + thrust_acc * u[0]
-    ay = y - (k1 + k2) * y - 2 * vx + thrust_acc * u[1]
-    az = -(k1 + k2) * z + thrust_acc * u[2]
-    return ca.Function("rhs", [s, m, u, a], [ca.vertcat(vx, vy, vz, ax, ay, az)])
-
-
-def _rk8_step(rhs: ca.Function) -> ca.Function:
-    """One DOP853 8th-order step of length h of the 6-state (SX, inlined stages): (s, m, u3, a, ṁ, h) → s.
-
-    The fuel flow ṁ (t/TU) is constant over a thrust segment, so the mass is linear in time and exact without
-    integrating it: stage i sees m − ṁ·c_i·h (``m`` at the start of the step), which is what RK8 on the 7-state
-    gives, since Σ_j a_ij = c_i.  The mass stays out of the integrated state: the constraint Jacobian needs one
-    reverse sweep fewer (6 rather than 7 through the steps; ≈ 10 % of the Jacobian, docs/performance.md).
-    """
-    s = ca.SX.sym("s", 6)
-    m = ca.SX.sym("m")
-    u = ca.SX.sym("u", 3)
-    a_max = ca.SX.sym("a")
-    mdot = ca.SX.sym("mdot")
-    h = ca.SX.sym("h")
-    a, b, c = dop853.A, dop853.B, dop853.C
-    k = []
-    for i in range(dop853.N_STAGES):
-        si = s + h * sum((a[i, j] * k[j] for j in range(i) if a[i, j] != 0.0), ca.SX.zeros(6))
-        k.append(rhs(si, m - mdot * (c[i] * h), u, a_max))
-    s_next = s + h * sum(b[i] * k[i] for i in range(dop853.N_STAGES))
-    return ca.Function("rk8_step", [s, m, u, a_max, mdot, h], [s_next])
-
-
 def _piece(step: ca.Function, n_steps: int, name: str) -> ca.Function:
     """Integrate n fixed steps over a duration dt (negative = backward): (s6, m, u4, p, dt) → s6.
 
     ``u4`` = (ρ·û, ρ), ``p`` = (a_max, ṁ_max); the fuel mass at the start of step j is m − ṁ_max·ρ·j·h
-    (h = dt/n), exact (:func:`_rk8_step`); the piece's final mass is :func:`_mass_after`.
+    (h = dt/n), exact (:mod:`~amorgs.problems.cr3bp.rk8_kernel`); the piece's final mass is :func:`_mass_after`.
     """
     s = ca.MX.sym("s", 6)
     m = ca.MX.sym("m")
@@ -173,8 +126,8 @@ class ForwardBackwardTranscription:
         self.xif = np.asarray(terminal_state, float)[:6].copy()
         self.m0_kg = float(np.asarray(initial_state, float)[6])
         self.m0_t = float(self.xi0[6])
-        rhs = _rhs_sx()
-        step = _rk8_step(rhs)
+        step = rk8_kernel.rk8_step()
+        self.c_sources = (rk8_kernel.source_path(),)
         if opt.coast == "interpolant":
             self.coast_pieces = {"coast_f": _coast_interpolant(self.xi0, 1, opt.coast_grid_step, "coast_f"),
                                  "coast_b": _coast_interpolant(self.xif, -1, opt.coast_grid_step, "coast_b")}
