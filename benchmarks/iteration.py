@@ -78,7 +78,7 @@ def per_call(options, alpha: float, points: np.ndarray) -> dict:
                 for _ in range(10):
                     f(x, alpha)
             rounds.append((time.process_time() - t0) / (10 * len(w)))
-        row[f"{name} (ms/call)"] = 1000 * min(rounds)
+        row[f"{name} (ms/call)"] = f"{1000 * min(rounds):.3f}"
     return row
 
 
