@@ -91,29 +91,22 @@ def main() -> None:
     args = ap.parse_args()
     cmd = "python benchmarks/iteration.py " + " ".join(sys.argv[1:])
     problem = get_problem("cr3bp")
-    if args.per_call:
-        rows = []
-        for alpha in args.alphas:
-            points = problem.sample_uniform(alpha, args.starts, np.random.default_rng(args.seed))
-            for label, options in DEFAULTS.items():
-                rows.append({"solver": label, **per_call(options, alpha, points)})
-                print(rows[-1], flush=True)
-        text = (f"Command: `{cmd}` — {machine()}; seed {args.seed}; one process; CPU ms per call, best of 5 rounds "
-                "of 10 calls at each point.\n\n" + markdown(rows))
-        print(text)
-        write_section("iteration_calls", text)
-        return
+    # --per-call: the two functions per call, the default block's solvers; else real solves, every solver.
+    measure, solvers = (per_call, DEFAULTS) if args.per_call else (profile, SOLVERS)
     rows = []
     for alpha in args.alphas:
-        guesses = problem.sample_uniform(alpha, args.starts, np.random.default_rng(args.seed))
-        for label, options in SOLVERS.items():
-            rows.append({"solver": label, **profile(options, alpha, guesses)})
+        points = problem.sample_uniform(alpha, args.starts, np.random.default_rng(args.seed))
+        for label, options in solvers.items():
+            rows.append({"solver": label, **measure(options, alpha, points)})
             print(rows[-1], flush=True)
-    text = (f"Command: `{cmd}` — {machine()}; seed {args.seed}; one process, the solves in series; CPU ms per "
-            "IPOPT iteration (CasADi's `t_proc_nlp_*` statistics; IPOPT's own = the solve's CPU less those).\n\n"
-            + markdown(rows))
+    if args.per_call:
+        what = "one process; CPU ms per call, best of 5 rounds of 10 calls at each point"
+    else:
+        what = ("one process, the solves in series; CPU ms per IPOPT iteration (CasADi's `t_proc_nlp_*` statistics; "
+                "IPOPT's own = the solve's CPU less those)")
+    text = f"Command: `{cmd}` — {machine()}; seed {args.seed}; {what}.\n\n" + markdown(rows)
     print(text)
-    write_section("iteration", text)
+    write_section("iteration_calls" if args.per_call else "iteration", text)
 
 
 if __name__ == "__main__":
