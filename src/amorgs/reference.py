@@ -11,13 +11,15 @@ Layout (paths keep their place under ``results/``)::
 ``starts.parquet``: every start of every ablation cell of the run, compact (:func:`starts_table`: the key, arm and
 model seed, the 64 guess columns, and what the solve gave — status, verdict, iterations, the solution's times
 τ_s, τ_i, τ_f and m_f (what the statistics read: quality and the η-distinctness of Eq. 12), objective, defects,
-CPU and wall seconds, solver-options hash; the solution's 60 controls are dropped, a re-solve reproduces them).  :func:`certify_reference` re-solves a seeded sample of these starts with the solver options
-of the run's config and reports whether iterations and m_f match exactly: the reproducibility certificate
+CPU and wall seconds, solver-options hash and the NLP's numerical fingerprint; the solution's 60 controls are
+dropped, a re-solve reproduces them).  :mod:`amorgs.certification` re-solves a seeded sample of these starts with
+the code that made them and reports whether iterations and m_f match exactly: the reproducibility certificate
 (``amorgs reference-certify``).
 
 ``provenance.json``: every exported file (SHA-256, bytes); the config (file, SHA-256 of the file, the config
 hash MLflow records — a config file holds overrides of the typed defaults, so the test that the shipped config
-still describes the run compares the *effective* configs of the shipped file and of ``config.yaml``); the run's git commit and whether its tracked files were modified; package versions; the
+still describes the run compares the *effective* configs of the shipped file and of ``config.yaml``); the run's git commit and whether its tracked files were modified; its ``identity`` (commit, solver-options hash,
+the NLP's fingerprint per α, read from the starts, and the environment: :mod:`amorgs.solvers.fingerprint`); package versions; the
 library the run read (manifest SHA-256, rows, the CPU-hours that made it); the CPU-hours the run itself spent,
 per rule (solves: the ``cpu_s`` column of every solve table; training: ``train_cpu_s`` of every training
 report); and every solve table the tables were computed from (rows, SHA-256 — the tables themselves are not
@@ -41,6 +43,7 @@ from amorgs.data.io import atomic_path, write_json
 from amorgs.data.library import MANIFEST as LIBRARY_MANIFEST
 from amorgs.data.library import read_manifest, sha256_file
 from amorgs.errors import InputError
+from amorgs.solvers.fingerprint import environment
 from amorgs.steps import outputs_of, targets
 from amorgs.tracking import git_state, package_versions
 
@@ -60,7 +63,7 @@ STARTS_FILE = "starts.parquet"
 #: table's path under ``results/``.
 START_COLUMNS = ("problem", "sampler", "model_seed", "alpha", "seed", "start", "reuse_alpha", "reuse_pool_size",
                  "status", "converged", "solver_success", "iterations", "tau_s", "tau_i", "tau_f", "m_f", "objective", "defect",
-                 "verify_defect", "cpu_s", "wall_s", "options_hash")
+                 "verify_defect", "cpu_s", "wall_s", "options_hash", "nlp_fingerprint")
 #: Rules that train: their ``report`` output (``<model>.training.json``) holds ``train_cpu_s``.
 TRAIN_RULES = ("train_cr3bp", "train_cr3bp_replicate", "train_cr3bp_fraction")
 
@@ -80,6 +83,23 @@ def starts_table(cells: dict[str, pd.DataFrame]) -> pd.DataFrame:
     if not parts:
         return pd.DataFrame(columns=[*START_COLUMNS, "cell"])
     return pd.concat(parts, ignore_index=True)
+
+
+def starts_identity(starts: pd.DataFrame) -> dict:
+    """The identity the starts record: their options hash and, where they carry ``nlp_fingerprint``, one
+    fingerprint per α (keys ``f"{α:g}"``; ``InputError`` when an α holds several: rows of different codes)."""
+    hashes = sorted(set(starts["options_hash"].dropna()))
+    out: dict = {"options_hash": hashes[0] if len(hashes) == 1 else hashes}
+    if "nlp_fingerprint" in starts:
+        fps = {}
+        for alpha, col in starts.groupby("alpha")["nlp_fingerprint"]:
+            held = sorted(set(col.dropna()) - {""})
+            if len(held) > 1:
+                raise InputError(f"starts at α = {alpha:g} were solved by {len(held)} codes ({', '.join(held)})")
+            if held:
+                fps[f"{float(alpha):g}"] = held[0]
+        out["nlp_fingerprints"] = fps
+    return out
 
 
 def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | Path = ".",
@@ -134,12 +154,14 @@ def export_reference(config_file: str | Path, dest: str | Path, run_dir: str | P
         cpu_hours[rule] = sum(json.loads((run / p).read_text())["train_cpu_s"] for p in reports) / 3600.0
 
     library = read_manifest(run / library_dir, problem)
+    state = git_state(run)
     manifest = {
         "config_file": str(config_file),
         "config_sha256": sha256_file(run / config_file),
         "config_hash": cfg.hash,
         "command": f"snakemake --configfile {config_file} --cores N",
-        **git_state(run),
+        **state,
+        "identity": {"commit": state["git_commit"], **starts_identity(starts), "environment": environment()},
         "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "packages": {k.removeprefix("version."): v for k, v in package_versions().items()},
         "library": {
@@ -223,80 +245,6 @@ def verify_reference(dest: str | Path) -> dict:
         raise InputError(f"{config}: {'differs from' if config.is_file() else 'missing, named in'} the "
                          f"config_sha256 of {manifest_path}")
     return manifest
-
-
-def compare_resolves(rows: pd.DataFrame, records, variable_names: tuple[str, ...]) -> pd.DataFrame:
-    """Each start of ``rows`` (a slice of :data:`STARTS_FILE`) beside its re-solve (``records``: solve records in
-    the same order, turned into table rows exactly as the ablation did, with ``variable_names``):
-    ``status``/``status_again``, ``iterations``/``iterations_again``, ``m_f``/``m_f_again`` (kg), and ``exact`` —
-    the same status, the same iteration count and a bit-identical m_f (both NaN counts as identical)."""
-    out = rows[["sampler", "alpha", "seed", "start", "status", "iterations", "m_f"]].reset_index(drop=True)
-    again = pd.DataFrame([r.to_row(variable_names) for r in records])
-    out["status_again"] = again["status"].to_numpy()
-    out["iterations_again"] = again["iterations"].astype(int).to_numpy()
-    out["m_f_again"] = again["m_f"].astype(float).to_numpy()
-    m_f, m_f_again = out["m_f"].to_numpy(float), out["m_f_again"].to_numpy(float)
-    same_m_f = (m_f == m_f_again) | (np.isnan(m_f) & np.isnan(m_f_again))
-    out["exact"] = (out["status"] == out["status_again"]).to_numpy() & (
-        out["iterations"] == out["iterations_again"]).to_numpy() & same_m_f
-    return out
-
-
-def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers: int = 1) -> dict:
-    """The reproducibility certificate of the committed reference ``dest``: its files are checked against the
-    manifest (:func:`verify_reference`), then ``sample`` of its starts (:data:`STARTS_FILE`), drawn without
-    replacement with ``numpy.random.default_rng(seed)``, are re-solved from their stored guesses with the
-    solver options of the run's config (``config.yaml``; their hash must equal the starts' ``options_hash``)
-    and compared (:func:`compare_resolves`).  Returns ``{"reference", "sample", "seed", "n", "exact",
-    "matched", "max_abs_dm_f_kg", "options_hash", "packages", "rows": [...]}``; ``exact`` is true when every
-    re-solve matched.  ``InputError`` names the file when the reference has no starts or other options."""
-    from amorgs.problems import get_problem
-    from amorgs.solvers.multistart import options_digest, solve_guesses
-
-    dst = Path(dest)
-    manifest = verify_reference(dst)
-    path = dst / STARTS_FILE
-    if not path.is_file():
-        raise InputError(f"{path}: this reference has no per-start table (exported before they were kept); "
-                         "re-export it from its run to certify it")
-    starts = pd.read_parquet(path)
-    if sample < 1:
-        raise InputError(f"--sample {sample}: certify at least 1 start")
-    if workers < 1:
-        raise InputError(f"--workers {workers}: at least 1 solver process")
-    cfg = load_config(dst / CONFIG_COPY)
-    problem = get_problem("cr3bp")
-    options = cfg.problems.cr3bp.solver
-    digest = options_digest("cr3bp", options)
-    held = sorted(set(starts["options_hash"].dropna()))
-    if held != [digest]:
-        raise InputError(f"{path}: solved with solver options {', '.join(held)}; {dst / CONFIG_COPY} gives "
-                         f"{digest} with today's code — the solver's defaults changed since the run")
-    rng = np.random.default_rng(seed)
-    chosen = starts.iloc[np.sort(rng.choice(len(starts), size=min(sample, len(starts)), replace=False))]
-    guess_cols = [f"guess_{v}" for v in problem.variable_names]
-    compared = []
-    for alpha, rows in chosen.groupby("alpha", sort=True):
-        records, _ = solve_guesses(problem, float(alpha), rows[guess_cols].to_numpy(float), workers, options,
-                                   progress=False)
-        compared.append(compare_resolves(rows, records, problem.variable_names))
-    table = pd.concat(compared, ignore_index=True)
-    dm = (table["m_f"] - table["m_f_again"]).abs()
-    return {
-        "reference": str(dst),
-        "config_hash": manifest["config_hash"],
-        "git_commit_of_run": manifest["git_commit"],
-        "sample": int(len(table)),
-        "seed": int(seed),
-        "of_starts": int(len(starts)),
-        "matched": int(table["exact"].sum()),
-        "exact": bool(table["exact"].all()),
-        "max_abs_dm_f_kg": float(dm.max()) if dm.notna().any() else 0.0,
-        "options_hash": digest,
-        **git_state(Path.cwd()),
-        "packages": {k.removeprefix("version."): v for k, v in package_versions().items()},
-        "rows": json.loads(table.to_json(orient="records")),
-    }
 
 
 #: Columns of :data:`STARTS_FILE` that a rerun need not reproduce (timings).

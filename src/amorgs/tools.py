@@ -40,7 +40,9 @@ EXAMPLES = {
     "frontier": "amorgs frontier results/frontier/runs/*/ --dest results/frontier",
     "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
     "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
-    "reference-certify": "amorgs reference-certify reference/frontier/sparse-3 --sample 20 --seed 0   # exit 1: a re-solve differs",
+    "reference-certify": "amorgs reference-certify reference/frontier/sparse-3 --sample 20 --seed 0   # exit 1: a re-solve differs\n"
+    "  amorgs reference-certify reference/frontier/sparse-3 --at-commit   # with the code that made it\n"
+    "  amorgs reference-certify --all --sample 3                          # every reference by its route (CI)",
 }
 
 
@@ -200,28 +202,56 @@ def cmd_reference_export(args: argparse.Namespace) -> None:
               f"({manifest['cpu_hours']['total']:.2f} CPU-hours; reproduced exactly: {manifest['reproduced'] or 'none'}); "
               f"the other arms kept from {manifest['earlier_run']['git_commit'][:10]}")
         return
+    from amorgs.certification import check_exportable, record_entry
+
+    check_exportable(args.run_dir)
     manifest = export_reference(args.config, args.dest, args.run_dir, args.library_dir, figures=not args.no_figures,
                                 tables=not args.starts_only)
+    registry = record_entry(args.dest, {"route": "today", **manifest["identity"]})
     print(f"{args.dest}: {len(manifest['files'])} files from the run of {args.config} "
           f"({manifest['cpu_hours']['total']:.2f} CPU-hours, library of {manifest['library']['rows']} solves); "
-          f"manifest {args.dest}/provenance.json")
+          f"manifest {args.dest}/provenance.json; certified with today's code in {registry}")
 
 
 def cmd_reference_certify(args: argparse.Namespace) -> None:
     from pathlib import Path
 
+    from amorgs.certification import certify_all, certify_reference, record_at_commit
     from amorgs.data.io import write_json
-    from amorgs.reference import certify_reference
 
-    cert = certify_reference(args.reference, args.sample, args.seed, args.workers)
+    if args.all:
+        if args.reference or args.at_commit or args.record:
+            raise SystemExit("amorgs reference-certify --all: takes no reference, --at-commit or --record")
+        failed = 0
+        for r in certify_all(".", args.sample, args.seed, args.workers):
+            failed += not r["ok"]
+            print(f"{'ok  ' if r['ok'] else 'FAIL'} reference/{r['reference']} [{r['route']}]: {r['line']}", flush=True)
+        if failed:
+            raise SystemExit(f"{failed} reference(s) not certified")
+        return
+    if not args.reference:
+        raise SystemExit("amorgs reference-certify: name a reference directory, or --all")
+    if args.record and not args.at_commit:
+        raise SystemExit("amorgs reference-certify --record: only with --at-commit (records the commit it stays valid at)")
     output = Path(args.output or f"results/certificates/{Path(args.reference).name}-seed{args.seed}.json")
+    try:  # refuse an output that cannot be written before any solve
+        output.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SystemExit(f"--output {output}: cannot create its folder ({exc.strerror})") from None
+    if output.is_dir() or not os.access(output.parent, os.W_OK):
+        raise SystemExit(f"--output {output}: {'a directory' if output.is_dir() else 'its folder is not writable'}")
+    cert = certify_reference(args.reference, args.sample, args.seed, args.workers, args.at_commit)
     write_json(cert, output)
     verdict = "reproduced exactly" if cert["exact"] else "NOT reproduced"
+    at = f"at commit {cert['code_commit'][:12]}" if cert["route"] == "commit" else "with this checkout's code"
     print(f"{args.reference}: {cert['matched']} of {cert['sample']} re-solved starts (seed {args.seed}, of "
-          f"{cert['of_starts']}) match iterations, status and m_f exactly — {verdict}; largest |Δm_f| "
+          f"{cert['of_starts']}) match iterations, status and m_f exactly {at} — {verdict}; largest |Δm_f| "
           f"{cert['max_abs_dm_f_kg']:.3g} kg; certificate {output}")
     if not cert["exact"]:
         raise SystemExit(1)
+    if args.record:
+        print(f"recorded in {record_at_commit(args.reference, cert, args.why or '')}: {args.reference} stays valid at "
+              f"commit {cert['code_commit'][:12]}")
 
 
 def cmd_config_schema(args: argparse.Namespace) -> None:
@@ -428,7 +458,17 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("reference-certify",
                        help="re-solve a seeded sample of a committed reference's starts: do iterations and m_f match exactly?")
-    p.add_argument("reference", help="the committed reference directory (with starts.parquet), e.g. reference/frontier/sparse-3")
+    p.add_argument("reference", nargs="?", default=None,
+                   help="the committed reference directory (with starts.parquet), e.g. reference/frontier/sparse-3")
+    p.add_argument("--all", action="store_true",
+                   help="certify every committed reference by its route in reference/certification.json (CI)")
+    p.add_argument("--at-commit", nargs="?", const="recorded", default=None, metavar="COMMIT",
+                   help="re-solve with the code of COMMIT (default: the one recorded for the reference) in a temporary "
+                        "git worktree, in this environment, instead of this checkout's code")
+    p.add_argument("--record", action="store_true",
+                   help="with --at-commit: record in reference/certification.json that the reference stays valid at "
+                        "that commit (only after an exact certificate)")
+    p.add_argument("--why", default=None, help="with --record: the reason recorded")
     p.add_argument("--sample", type=int, default=20, help="how many starts to re-solve (default 20)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sample (default 0)")
     p.add_argument("--workers", type=int, default=1, help="solver processes (default 1)")

@@ -34,7 +34,7 @@ RULES = (
 #: arms) into the typed experiment, so it sits above them; the steps, ``amorgs design`` and the checks use
 #: everything; the command line is on top.
 LAYERS = (
-    ("amorgs.alphas", "amorgs.errors", "amorgs.layout"),
+    ("amorgs.alphas", "amorgs.errors", "amorgs.layout", "amorgs.checkout"),
     ("amorgs.solvers",),
     ("amorgs.problems",),
     ("amorgs.data",),
@@ -44,7 +44,7 @@ LAYERS = (
     ("amorgs.config",),
     ("amorgs.tracking", "amorgs.lifeline", "amorgs.trajectory_export"),
     ("amorgs.figures",),
-    ("amorgs.steps", "amorgs.design", "amorgs.checks", "amorgs.reference", "amorgs.frontier"),
+    ("amorgs.steps", "amorgs.design", "amorgs.checks", "amorgs.reference", "amorgs.certification", "amorgs.frontier"),
     ("amorgs.tools", "amorgs.library_grow", "amorgs.cli", "amorgs.__main__", "amorgs"),
 )
 
@@ -53,7 +53,8 @@ LAYERS = (
 #: ``amorgs reference-export`` (:mod:`amorgs.reference`), which copies what the steps made, and ``amorgs frontier``
 #: (:mod:`amorgs.frontier`), which reads the cells the steps of each fold declare.
 TOP = ("amorgs.cli", "amorgs.steps")
-TOP_IMPORTERS = ("amorgs.cli", "amorgs.steps", "amorgs.__main__", "amorgs.checks", "amorgs.reference", "amorgs.frontier")
+TOP_IMPORTERS = ("amorgs.cli", "amorgs.steps", "amorgs.__main__", "amorgs.checks", "amorgs.reference",
+                 "amorgs.certification", "amorgs.frontier")
 
 
 def _within(name: str, prefix: str) -> bool:

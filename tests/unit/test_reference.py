@@ -69,7 +69,7 @@ def test_certificate_compares_iterations_status_and_m_f_exactly():
     import numpy as np
     import pandas as pd
 
-    from amorgs.reference import compare_resolves
+    from amorgs.certification import compare_resolves
     from amorgs.solvers.record import SolveRecord
 
     names = ("tau_s", "tau_i", "tau_f", "m_f")
@@ -90,7 +90,7 @@ def test_certificate_compares_iterations_status_and_m_f_exactly():
 
 def test_a_reference_without_starts_cannot_be_certified_and_says_so():
     from amorgs.errors import InputError
-    from amorgs.reference import certify_reference
+    from amorgs.certification import certify_reference
 
     with pytest.raises(InputError, match=r"reference/study/starts\.parquet: this reference has no per-start table"):
         certify_reference(ROOT / "reference" / "study", sample=1)

@@ -65,6 +65,8 @@ MANIFEST = "provenance.json"
 CLIP_TOLERANCE = 1e-6
 #: Manifest value of a file without ``guess_*`` columns (see the module docstring, compact storage).
 GUESSES_SEEDED = "seeded"
+#: The row column of the NLP's numerical fingerprint (:mod:`amorgs.solvers.fingerprint`); "" where unknown.
+FINGERPRINT = "nlp_fingerprint"
 
 
 # ------------------------------------------------------------------------------------------- reading
@@ -144,6 +146,8 @@ def read_library_file(path: str | Path, library_dir: str | Path, problem: str, m
     df = read_table(path)
     if len(df) != entry["rows"]:
         raise InputError(f"{path}: {len(df)} rows, the manifest lists {entry['rows']}")
+    if FINGERPRINT not in df:  # exported before rows carried it: unknown (the entry's ``codes`` says which commits)
+        df = df.assign(**{FINGERPRINT: ""})
     return restore_seeded_guesses(df, problem) if entry.get("guesses") == GUESSES_SEEDED else df
 
 
@@ -268,6 +272,8 @@ def check_library_shard(df: pd.DataFrame, path: str | Path, problem: str, base_s
         raise InputError(f"{where}: {len(df)} rows, the library config makes {starts} per shard")
     if df["options_hash"].nunique() != 1:
         raise InputError(f"{where}: mixed solver-option hashes {sorted(df['options_hash'].unique())}")
+    if FINGERPRINT in df and len(set(df[FINGERPRINT]) - {""}) > 1:
+        raise InputError(f"{where}: rows of several codes (NLP fingerprints {sorted(set(df[FINGERPRINT]) - {''})})")
     if options_hash is not None and df["options_hash"].iloc[0] != options_hash:
         raise InputError(f"{where}: solver-option hash {df['options_hash'].iloc[0]}, the library config's is "
                          f"{options_hash}: this shard was solved with other options and cannot enter the library")
@@ -313,18 +319,47 @@ def solver_generation(solver) -> int:
     return 2 if getattr(transcription, "coast", None) == "interpolant" else 1
 
 
-def _generations(files: list[dict]) -> list[dict]:
-    """The manifest's ``generations``: what each is, its solver-option hashes and its totals."""
+def _generations(files: list[dict], codes: dict | None = None) -> list[dict]:
+    """The manifest's ``generations``: what each is, its solver-option hashes, its code (the NLP fingerprint per
+    α, for the generations whose rows carry one: ``codes``, the manifest's ``generation_codes``) and its totals."""
+    codes = codes or {}
     out = []
-    for number, label in GENERATIONS.items():
+    for number in sorted({e.get("generation", 1) for e in files}):
         mine = [e for e in files if e.get("generation", 1) == number]
-        if mine:
-            out.append({"generation": number, "what": label,
-                        "options_hashes": sorted({h for e in mine for h in e["options_hashes"]}),
-                        "files": len(mine), "rows": sum(e["rows"] for e in mine),
-                        "converged": sum(e["converged"] for e in mine),
-                        "cpu_hours": sum(e["cpu_hours"] for e in mine)})
+        code = codes.get(str(number), {})
+        out.append({"generation": number, "what": GENERATIONS.get(number) or code.get("what", ""),
+                    "options_hashes": sorted({h for e in mine for h in e["options_hashes"]}),
+                    **({"nlp_fingerprints": code["nlp_fingerprints"]} if code else
+                       {"nlp_fingerprints": "not recorded (rows made before issue 37; each file's sources name their "
+                                            "commits)"}),
+                    "files": len(mine), "rows": sum(e["rows"] for e in mine),
+                    "converged": sum(e["converged"] for e in mine),
+                    "cpu_hours": sum(e["cpu_hours"] for e in mine)})
     return out
+
+
+def assign_generation(manifest: dict, base: int, options_hash: str, alpha_key: str, fingerprint: str,
+                      commit: str) -> int:
+    """The generation that new rows of one α join, so that a generation never mixes codes.
+
+    Rows without a fingerprint (made before issue 37) join ``base`` (:func:`solver_generation`), as before.  Rows
+    with one join the latest *fingerprinted* generation (``manifest["generation_codes"]``) of the same solver
+    options whose recorded fingerprint at this α is the same (or not yet recorded); else they start a new
+    generation, recorded with their options hash, fingerprint and commit.  Updates ``generation_codes``."""
+    if not fingerprint:
+        return base
+    codes = manifest.setdefault("generation_codes", {})
+    for number in sorted(codes, key=int, reverse=True):
+        code = codes[number]
+        if code["options_hash"] == options_hash and code["nlp_fingerprints"].get(alpha_key, fingerprint) == fingerprint:
+            code["nlp_fingerprints"][alpha_key] = fingerprint
+            return int(number)
+    number = max([base, *GENERATIONS, *(e.get("generation", 1) for e in manifest["files"]), *map(int, codes)]) + 1
+    codes[str(number)] = {"what": f"generation {base}'s solver, one code per generation (NLP fingerprints, issue 37); "
+                                  f"first rows from commit {commit[:12]}",
+                          "options_hash": options_hash, "based_on": base, "first_commit": commit,
+                          "nlp_fingerprints": {alpha_key: fingerprint}}
+    return number
 
 
 def library_identity(cfg, problem: str) -> dict:
@@ -368,6 +403,8 @@ def _check_same_library(manifest: dict, identity: dict, solver, config_file: str
 
 def _same_solves(shard: pd.DataFrame, held: pd.DataFrame) -> bool:
     """Whether a shard table holds the same solves as the library's rows of that shard (timings aside)."""
+    if FINGERPRINT not in shard and FINGERPRINT in held and not held[FINGERPRINT].astype(bool).any():
+        held = held.drop(columns=FINGERPRINT)  # a shard made before rows carried it, held as unknown
     columns = [c for c in held.columns if c not in TIMING_COLUMNS]
     if sorted(shard.columns) != sorted(held.columns) or len(shard) != len(held):
         return False
@@ -446,6 +483,12 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
         where = f"{solutions_dir}/{label_dir}"
         df = clipped(merge_shards(d for _, d in parts), where)
         rel = f"{label_dir}/shards-{shards[0]:05d}-{shards[-1]:05d}.parquet"
+        fingerprints = sorted(set(df[FINGERPRINT]) - {""}) if FINGERPRINT in df else []
+        if len(fingerprints) > 1:
+            raise InputError(f"{where}: shards of several codes (NLP fingerprints {fingerprints}): export them "
+                             "from separate runs")
+        generation = assign_generation(manifest, solver_generation(section.solver), identity["options_hash"],
+                                       label_dir.removeprefix("alpha="), fingerprints[0] if fingerprints else "", commit)
         write_parquet(drop_seeded_guesses(df, problem, where), root / rel)
         conv = df[df["converged"]]
         files.append({
@@ -459,7 +502,8 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
             "bytes": (root / rel).stat().st_size,
             "options_hashes": sorted(df["options_hash"].astype(str).unique().tolist()),
             "guesses": GUESSES_SEEDED,
-            "generation": solver_generation(section.solver),
+            "generation": generation,
+            "nlp_fingerprints": fingerprints,
             "cpu_hours": float(df["cpu_s"].fillna(0).sum() / 3600),
             "exported": now,
             "git_commit": commit,
@@ -476,13 +520,13 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
         "seed": identity["seed"],
         "starts_per_shard": identity["starts_per_shard"],
         "identity": identity,
-        **_summaries(files),
+        **_summaries(files, manifest.get("generation_codes")),
     })
     write_json(manifest, root / MANIFEST)
     return {"files_added": len(new), "rows_added": added_rows, "held_identical": identical, **manifest["totals"]}
 
 
-def _summaries(files: list[dict]) -> dict:
+def _summaries(files: list[dict], codes: dict | None = None) -> dict:
     """The manifest's derived keys over its file entries: ``totals``, ``generations`` and ``per_alpha``."""
     total_bytes = sum(e["bytes"] for e in files)
     rows = sum(e["rows"] for e in files)
@@ -496,7 +540,7 @@ def _summaries(files: list[dict]) -> dict:
             "bytes": total_bytes,
             "bytes_per_row": total_bytes / rows,
         },
-        "generations": _generations(files),
+        "generations": _generations(files, codes),
         "per_alpha": _per_alpha(files),
     }
 
@@ -554,6 +598,8 @@ def compact_library(library_dir: str | Path, problem: str) -> dict:
             "options_hashes": sorted({h for e in entries for h in e["options_hashes"]}),
             "guesses": GUESSES_SEEDED,
             "generation": generation,
+            **({"nlp_fingerprints": sorted({f for e in entries for f in e["nlp_fingerprints"]})}
+               if any("nlp_fingerprints" in e for e in entries) else {}),
             "cpu_hours": sum(e["cpu_hours"] for e in entries),
             "exported": max(e["exported"] for e in entries),
             "git_commit": max(entries, key=lambda e: e["exported"]).get("git_commit", "unknown"),
@@ -573,7 +619,7 @@ def compact_library(library_dir: str | Path, problem: str) -> dict:
     manifest.setdefault("compactions", []).append({"created": now, "git_commit": git_commit(),
                                                    "files_before": before["files"], "bytes_before": before["bytes"],
                                                    "files_after": after["files"], "bytes_after": after["bytes"]})
-    manifest.update(_summaries(kept))
+    manifest.update(_summaries(kept, manifest.get("generation_codes")))
     write_json(manifest, root / MANIFEST)
     return {"before": before, "after": after, "files_rewritten": len(replaced)}
 

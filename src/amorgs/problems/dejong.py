@@ -25,6 +25,7 @@ from pydantic import ConfigDict, Field
 from pydantic.dataclasses import dataclass
 
 from amorgs.problems.base import Family, QualityFilter, SolveRecord, check_alpha, check_vector
+from amorgs.solvers.fingerprint import function_fingerprint, sample_points
 from amorgs.solvers.options import BfgsOptions, as_options
 
 #: Eq. 38: eight holes in two clusters of four (columns are (x₁, x₂) at α = 0).
@@ -127,6 +128,18 @@ class DeJongBFGS:
         self.problem = problem
         self.options = options
         self.options_hash = options.digest()
+        self._fingerprints: dict[float, str] = {}
+
+    def fingerprint(self, alpha: float) -> str:
+        """The numerical fingerprint of J(·; α) and its gradient (:func:`~amorgs.solvers.fingerprint.function_fingerprint`
+        at seeded points of the box), once per α."""
+        a = float(alpha)
+        if a not in self._fingerprints:
+            A = minima_matrix(a)
+            points = sample_points(self.problem.lower, self.problem.upper)
+            self._fingerprints[a] = function_fingerprint(
+                (lambda x, _: dejong5(x, A), lambda x, _: dejong5_gradient(x, A)), points, a)
+        return self._fingerprints[a]
 
     def solve(self, x0: np.ndarray, alpha: float) -> SolveRecord:
         """Minimise J(·; α) from ``x0`` (shape (2,)).
@@ -161,6 +174,7 @@ class DeJongBFGS:
                 wall_s=time.perf_counter() - wall0,
                 cpu_s=time.process_time() - cpu0,
                 message=f"{type(exc).__name__}: {exc}",
+                nlp_fingerprint=self.fingerprint(a),
             )
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         x = np.asarray(res.x, dtype=float)
@@ -175,6 +189,7 @@ class DeJongBFGS:
             wall_s=wall,
             cpu_s=cpu,
             message=str(res.message),
+            nlp_fingerprint=self.fingerprint(a),
         )
 
 

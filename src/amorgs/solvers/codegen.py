@@ -18,6 +18,8 @@ from pathlib import Path
 
 import casadi as ca
 
+from amorgs.solvers.fingerprint import cpu_model
+
 
 def cache_dir() -> Path:
     """Where compiled NLP libraries are kept: ``$AMORGS_CACHE_DIR`` or ``~/.cache/amorgs``."""
@@ -26,13 +28,7 @@ def cache_dir() -> Path:
 
 def cpu_identity() -> str:
     """CPU model and instruction-set flags (part of the cache key when code is built with -march=native)."""
-    try:
-        info = Path("/proc/cpuinfo").read_text().splitlines()
-    except OSError:
-        return platform.processor() or platform.machine()
-    model = next((line.split(":", 1)[1].strip() for line in info if line.startswith("model name")), "")
-    flags = next((line.split(":", 1)[1].strip() for line in info if line.startswith(("flags", "Features"))), "")
-    return f"{model}|{hashlib.sha256(flags.encode()).hexdigest()[:16]}"
+    return cpu_model()
 
 
 def compiled_library_path(name: str, nlp: dict, hessian: str, identity: dict, flags: str,

@@ -19,6 +19,7 @@ import numpy as np
 from amorgs.alphas import check_alpha
 from amorgs.solvers.record import SolveRecord
 from amorgs.solvers.codegen import ipopt_nlpsol
+from amorgs.solvers.fingerprint import nlp_fingerprint
 from amorgs.solvers.options import IpoptOptions, TranscriptionOptions
 
 #: IPOPT return statuses that count as the solver's own success.
@@ -165,6 +166,7 @@ class IpoptSolver:
         self.build_s = 0.0
         self._built: dict[TranscriptionOptions, tuple] = {}
         self._monitors: dict[TranscriptionOptions, StallMonitor | None] = {}
+        self._fingerprints: dict[float, str] = {}
         self._jit_dirs: list = []  # JIT builds live as long as the solver
         self.last_trace: list[float] = []  # max|g| per IPOPT iteration of the latest solve (stall abort on)
         self._ipopt = ipopt_settings(options)
@@ -202,12 +204,23 @@ class IpoptSolver:
             self.build_s += time.perf_counter() - t0
         return self._built[tr_opts]
 
+    def fingerprint(self, alpha: float) -> str:
+        """The numerical fingerprint of the NLP this solver solves at ``alpha`` (:mod:`amorgs.solvers.fingerprint`:
+        the exact bits of its objective, constraints and derivatives at seeded points), computed once per α
+        (≈ 10 ms) and recorded with every solve."""
+        alpha = float(alpha)
+        if alpha not in self._fingerprints:
+            _, nlpsol, *bounds = self._nlp(alpha)
+            self._fingerprints[alpha] = nlp_fingerprint(nlpsol, tuple(bounds), alpha)
+        return self._fingerprints[alpha]
+
     def solve(self, x0: np.ndarray, alpha: float) -> SolveRecord:
         """Solve from a stored-layout guess; invalid input raises ``ValueError``, numerical failure never does."""
         p = self.problem
         alpha = check_alpha(alpha, p.alpha_range, p.name)
         x0 = p.check_guess(x0)
         tr, nlpsol, lbw, ubw, lbg, ubg = self._nlp(alpha)
+        fingerprint = self.fingerprint(alpha)
         w0 = tr.to_internal(x0, alpha)
         monitor = self._monitors[self.options.transcription.for_alpha(alpha)]
         if monitor is not None:
@@ -220,6 +233,7 @@ class IpoptSolver:
             return SolveRecord(
                 status="exception", converged=False, solver_success=False, x=np.full(x0.size, np.nan),
                 wall_s=time.perf_counter() - wall0, cpu_s=time.process_time() - cpu0, message=str(exc)[:200],
+                nlp_fingerprint=fingerprint,
             )
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         status = str(stats.get("return_status", "unknown"))
@@ -247,4 +261,5 @@ class IpoptSolver:
             cpu_s=cpu,
             defect=defect,
             verify_defect=verify,
+            nlp_fingerprint=fingerprint,
         )

@@ -22,7 +22,9 @@ class SolveRecord:
     verdict: solver success, match-point defect below tolerance and (where the problem has one) the
     independent re-propagation defect below its tolerance.  ``solver_success`` keeps the solver's own
     verdict so the two can be compared.  ``x`` is the solution in the problem's stored layout (NaN when
-    there is none).  Times are seconds; ``defect`` and ``verify_defect`` are in the problem's defect units
+    there is none).  ``nlp_fingerprint`` is the numerical fingerprint of the problem the solver solved at this α
+    (:mod:`amorgs.solvers.fingerprint`; empty when the solve never reached a solver, e.g. a crashed worker).
+    Times are seconds; ``defect`` and ``verify_defect`` are in the problem's defect units
     (dimensionless for the CR3BP: DU, VU, tonnes).
     """
 
@@ -37,6 +39,7 @@ class SolveRecord:
     defect: float = math.nan
     verify_defect: float = math.nan
     message: str = ""
+    nlp_fingerprint: str = ""
     extra: dict = field(default_factory=dict)
 
     def to_row(self, variable_names: tuple[str, ...]) -> dict:
