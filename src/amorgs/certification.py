@@ -264,7 +264,7 @@ def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers
                 last = (run.stderr.strip().splitlines() or run.stdout.strip().splitlines() or ["no output"])[-1]
                 raise InputError(f"{dst}: the certificate at commit {commit[:12]} failed: {last}")
             cert = json.loads(output.read_text())
-    return {**cert, "route": "commit", "code_commit": commit, "nlp_fingerprints": there["nlp_fingerprints"],
+    return {**cert, "reference": str(dst), "route": "commit", "code_commit": commit, "nlp_fingerprints": there["nlp_fingerprints"],
             "environment": there["environment"]}
 
 

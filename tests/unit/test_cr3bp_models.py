@@ -124,14 +124,15 @@ def test_reuse_cvae_learns_the_correction_to_an_unseen_alpha(tmp_path):
     """τ_s = 6 + 20 α and m_f = 415 + 20 α at the training α {0.1, 0.4, 0.7, 1.0}: rows retrieved at the
     nearest training α and corrected to the unseen 0.5, 0.6 and 0.8 land, on average over the three, at under
     half of unchanged reuse's error in τ_s and m_f (reuse: 2, 2 and 2 TU / kg off); the checkpoint round-trips
-    through the sampler's loader and a seeded rng fixes the samples."""
+    through the sampler's loader and a seeded rng fixes the samples.  1200 epochs (≈ 30 s): with 600 the mean error
+    was 1.14 against the bound 1.0 on an Intel Xeon (it passed on the AMD EPYC machine)."""
     from amorgs.models import cvae
     from amorgs.models.reuse_cvae import load
     from amorgs.models.samplers import load_model
     from amorgs.problems import get_problem
 
     hq = synthetic_hq(400)
-    model = train_reuse_cvae(hq, "small", cfg(600))
+    model = train_reuse_cvae(hq, "small", cfg(1200))
     cvae.save(model, tmp_path / "reuse_cvae.pt")
     loaded = load_model(tmp_path, "reuse_cvae")
     assert isinstance(loaded, ReuseCVAE) and torch.equal(loaded.source_scale, model.source_scale)

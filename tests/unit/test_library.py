@@ -574,3 +574,21 @@ def test_compaction_keeps_every_row_bit_for_bit_and_exports_still_find_held_shar
     assert manifest["compactions"][-1]["files_before"] == 3
     assert compact_library(lib, "cr3bp")["files_rewritten"] == 0
     assert export_library(solutions, lib, "cr3bp", CFG, CONFIG)["held_identical"] == 3
+
+
+def test_a_generation_never_mixes_codes():
+    """Rows with a fingerprint start a generation of their own beside the unfingerprinted ones, join it while
+    their code is the same at their α, and start the next one when it differs (issue 37)."""
+    from amorgs.data.library import assign_generation
+
+    manifest = {"files": [{"generation": 3, "options_hashes": ["h"]}]}
+    assert assign_generation(manifest, 3, "h", "0.500", "", "c0") == 3  # no fingerprint: the solver's generation
+    assert assign_generation(manifest, 3, "h", "0.500", "aaa", "c1") == 4  # the first fingerprinted rows
+    assert assign_generation(manifest, 3, "h", "0.700", "bbb", "c1") == 4  # another α of the same code
+    assert assign_generation(manifest, 3, "h", "0.500", "aaa", "c2") == 4  # the same code again
+    assert assign_generation(manifest, 3, "h", "0.500", "zzz", "c3") == 5  # one bit moved at α = 0.5
+    assert assign_generation(manifest, 3, "g", "0.700", "bbb", "c3") == 6  # other options
+    codes = manifest["generation_codes"]
+    assert codes["4"]["nlp_fingerprints"] == {"0.500": "aaa", "0.700": "bbb"} and codes["4"]["first_commit"] == "c1"
+    assert codes["5"]["nlp_fingerprints"] == {"0.500": "zzz"} and codes["5"]["based_on"] == 3
+    assert assign_generation(manifest, 3, "h", "0.700", "bbb", "c4") == 4  # old code's rows find their generation

@@ -218,3 +218,60 @@ def test_certify_and_frontier_refuse_bad_counts_in_one_line_before_any_work(tmp_
     assert out.returncode != 0 and "Traceback" not in out.stderr
     assert out.stderr.strip() == f"amorgs {args[0]}: {said}"
     assert not (tmp_path / "f").exists()
+
+
+def test_every_committed_reference_has_a_certification_route():
+    """reference/certification.json names every committed reference (a directory with provenance.json) and only
+    those; a `commit` route names a commit of this repository with the fingerprints it gave; a `historical` one
+    says why.  The certificates themselves run in CI (`amorgs reference-certify --all`, .ci/run)."""
+    import json
+
+    from amorgs.certification import REGISTRY, references_under
+
+    registry = json.loads((ROOT / REGISTRY).read_text())["references"]
+    committed = {p.relative_to(ROOT / "reference").as_posix() for p in references_under(ROOT / "reference")}
+    assert set(registry) == committed
+    for name, entry in registry.items():
+        assert entry["route"] in ("today", "commit", "historical"), name
+        if entry["route"] == "historical":
+            assert entry["why"], name
+            continue
+        starts = __import__("pandas").read_parquet(ROOT / "reference" / name / "starts.parquet")
+        assert set(entry["nlp_fingerprints"]) == {f"{a:g}" for a in starts["alpha"].unique()}, name
+        assert set(starts["options_hash"]) == {entry["options_hash"]}, name
+        has_history = subprocess.run(["git", "cat-file", "-e", f"{entry['commit']}^{{commit}}"], cwd=ROOT,
+                                     capture_output=True).returncode == 0
+        shallow = subprocess.run(["git", "rev-parse", "--is-shallow-repository"], cwd=ROOT, capture_output=True,
+                                 text=True).stdout.strip() == "true"
+        assert has_history or shallow, f"{name}: commit {entry['commit']} is not in the repository"
+
+
+def test_the_readme_lead_says_what_the_committed_frontier_says():
+    """The README's lead paragraph, claim by claim, against reference/frontier/frontier.csv (iterations per
+    high-quality solution, 95 % intervals): how many points each learned arm is significantly slower than reuse,
+    their ratio range, that none is significantly faster, and the widest gap's point ratios."""
+    import re
+
+    import pandas as pd
+
+    lead = (ROOT / "README.md").read_text().split("## Quick start")[0]
+    lead = re.sub(r"\s+", " ", lead)
+    table = pd.read_csv(FRONTIER / "frontier.csv")
+    ratios = table[table["ratio_to_reuse"].notna() & (table["unit"] == "iterations")
+                   & (table["target"] == "high_quality")]
+    assert ratios["run"].nunique() == 6 and len(ratios[ratios["sampler"] == "amorgs"]) == 10
+    assert not (ratios["ratio_to_reuse_ci95_high"] < 1).any()  # "no learned sampler is significantly faster"
+    assert "no learned sampler we built is significantly faster than reusing" in lead
+    for arm, words in {"amorgs": "AmorGS at", "continuation": "secant continuation at",
+                       "reuse_cvae": "reuse-conditioned CVAE (which corrects each retrieved solution to the target α) at"}.items():
+        slower = ratios[(ratios["sampler"] == arm) & (ratios["ratio_to_reuse_ci95_low"] > 1)]["ratio_to_reuse"]
+        claim = f"{words} {len(slower)}" + (" of the 10 points" if arm == "amorgs" else "")
+        assert claim in lead, claim
+        assert f"({slower.min():.1f}–{slower.max():.1f}×" in lead, (arm, slower.min(), slower.max())
+    widest = ratios[ratios["gap_relative"] == ratios["gap_relative"].max()].set_index("sampler")
+    assert (widest["ratio_to_reuse"] < 1).all()
+    for arm, name in {"amorgs": "AmorGS", "continuation": "continuation", "reuse_cvae": "reuse-conditioned CVAE"}.items():
+        r = widest.loc[arm]
+        assert (f"{name} {r.ratio_to_reuse:.2f}, " in lead or f"{name} {r.ratio_to_reuse:.2f}, 95 % " in lead
+                ), (name, r.ratio_to_reuse)
+        assert f"{r.ratio_to_reuse_ci95_low:.2f}–{r.ratio_to_reuse_ci95_high:.2f}" in lead, arm

@@ -27,6 +27,8 @@ def test_export_then_verify_and_detect_tampering(tmp_path):
     manifest = export_models(trained(tmp_path), dest, load_config(config), config, ROOT / "data" / "library")
     assert [f["file"] for f in manifest["files"]] == list(CHECKPOINT_FILES)
     assert manifest["library_rows"] > 0 and len(manifest["library_manifest_sha256"]) == 64
+    assert {g["generation"] for g in manifest["library_identity"]} >= {1, 2, 3}  # the code of the training rows
+    assert all(g["options_hashes"] and "nlp_fingerprints" in g for g in manifest["library_identity"])
     assert verify_models(dest)["config_hash"] == manifest["config_hash"]
     (dest / "lstm.pt").write_bytes(b"edited")
     assert verify_models(dest, ("cvae_gmm.pt",)) is not None  # only what a sampler needs is checked

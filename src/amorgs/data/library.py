@@ -343,17 +343,19 @@ def assign_generation(manifest: dict, base: int, options_hash: str, alpha_key: s
     """The generation that new rows of one α join, so that a generation never mixes codes.
 
     Rows without a fingerprint (made before issue 37) join ``base`` (:func:`solver_generation`), as before.  Rows
-    with one join the latest *fingerprinted* generation (``manifest["generation_codes"]``) of the same solver
-    options whose recorded fingerprint at this α is the same (or not yet recorded); else they start a new
+    with one join the *fingerprinted* generation (``manifest["generation_codes"]``) of the same solver options
+    that holds their fingerprint at this α, else the latest one that has no rows at this α yet (a code is known
+    by its fingerprints at the α it solved: a batch at new α joins the newest code); else they start a new
     generation, recorded with their options hash, fingerprint and commit.  Updates ``generation_codes``."""
     if not fingerprint:
         return base
     codes = manifest.setdefault("generation_codes", {})
-    for number in sorted(codes, key=int, reverse=True):
-        code = codes[number]
-        if code["options_hash"] == options_hash and code["nlp_fingerprints"].get(alpha_key, fingerprint) == fingerprint:
-            code["nlp_fingerprints"][alpha_key] = fingerprint
-            return int(number)
+    mine = [n for n in sorted(codes, key=int, reverse=True) if codes[n]["options_hash"] == options_hash]
+    same = [n for n in mine if codes[n]["nlp_fingerprints"].get(alpha_key) == fingerprint]
+    free = [n for n in mine if alpha_key not in codes[n]["nlp_fingerprints"]]
+    for number in same[:1] or free[:1]:  # the generation of this code at this α, else the latest without this α
+        codes[number]["nlp_fingerprints"][alpha_key] = fingerprint
+        return int(number)
     number = max([base, *GENERATIONS, *(e.get("generation", 1) for e in manifest["files"]), *map(int, codes)]) + 1
     codes[str(number)] = {"what": f"generation {base}'s solver, one code per generation (NLP fingerprints, issue 37); "
                                   f"first rows from commit {commit[:12]}",

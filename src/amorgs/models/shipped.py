@@ -6,7 +6,9 @@ Layout::
     data/models/cr3bp/{cvae_gmm,vanilla_cvae,lstm}.pt     the checkpoints of one workflow run's train step
     data/models/cr3bp/provenance.json                     manifest: per file SHA-256 and bytes; the config
                                                           (file, hash), git commit, export time, and the
-                                                          library manifest's SHA-256 + rows they were trained on
+                                                          library manifest's SHA-256 + rows they were trained on,
+                                                          and the code that solved those rows (per generation:
+                                                          options hashes, NLP fingerprints)
 
 :func:`verify_models` refuses (``InputError`` naming the file) a checkpoint that is missing, unlisted or whose
 SHA-256 differs from the manifest.
@@ -53,6 +55,9 @@ def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: st
         "train_alphas": list(cfg.problems.cr3bp.alphas.train_values()),
         "library_manifest_sha256": sha256_file(library_path) if library is not None else None,
         "library_rows": library["totals"]["rows"] if library is not None else 0,
+        # the code that solved the training rows: each generation's options hashes and NLP fingerprints (issue 37)
+        "library_identity": [{k: g.get(k) for k in ("generation", "options_hashes", "nlp_fingerprints")}
+                             for g in (library or {}).get("generations", [])],
         "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "git_commit": git_commit(),
     }
