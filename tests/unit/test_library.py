@@ -23,7 +23,6 @@ from amorgs.config import load_config
 from amorgs.data.library import (
     CLIP_TOLERANCE,
     compact_library,
-    export_library,
     library_files,
     manifest_identity,
     read_library,
@@ -34,7 +33,16 @@ from amorgs.data.library import (
 from amorgs.library_grow import batch_targets, next_batch
 from amorgs.errors import ConfigError, InputError
 
+from amorgs.data.library import export_library as export_verified
+
 ROOT = Path(__file__).resolve().parents[2]
+
+
+def export_library(*args, **kwargs):
+    """Export without the gate's re-solve: the committed rows these tests split back into shards were solved by
+    generation 1's code (before 645f351, issue 37), which today's code does not reproduce bit for bit; the gate's
+    tests below (``test_the_gate_*``) re-solve shards that today's code made."""
+    return export_verified(*args, **{"resolve_sample": 0, **kwargs})
 LIBRARY = ROOT / "data" / "library"
 LIBRARY_CONFIG = ROOT / "config" / "library.yaml"
 
@@ -143,12 +151,13 @@ def test_export_clips_tiny_bound_violations_and_refuses_large_ones(tmp_path):
     solutions = real_shards(tmp_path, n=1)
     shard = next(solutions.glob("alpha=*/shard-*.parquet"))
     df = pd.read_parquet(shard)
-    row = int(np.flatnonzero(df["converged"])[0])
-    df.loc[row, "tau_i"] = -9e-9
+    rho = [c for c in df if c.startswith("rho_")]
+    row, column = next((r, c) for r in np.flatnonzero(df["converged"]) for c in rho if df.loc[r, c] == 1.0)
+    df.loc[row, column] = 1.0 + 9e-9  # full throttle, a few 1e-9 past its bound (IPOPT's bound relaxation)
     df.to_parquet(shard, index=False)
-    export_library(solutions, tmp_path / "lib1", "cr3bp", CFG, CONFIG)
+    export_verified(solutions, tmp_path / "lib1", "cr3bp", CFG, CONFIG, resolve_sample=0)  # rows re-verified
     stored = read_library(tmp_path / "lib1", "cr3bp", "0.500")
-    assert stored.loc[row, "tau_i"] == 0.0
+    assert stored.loc[row, column] == 1.0
     df.loc[row, "m_f"] = 999.0  # the fuel bound is the initial fuel, ≈ 452 kg
     df.to_parquet(shard, index=False)
     with pytest.raises(InputError, match=r"column 'm_f' lies .* outside its bounds"):
@@ -592,3 +601,116 @@ def test_a_generation_never_mixes_codes():
     assert codes["4"]["nlp_fingerprints"] == {"0.500": "aaa", "0.700": "bbb"} and codes["4"]["first_commit"] == "c1"
     assert codes["5"]["nlp_fingerprints"] == {"0.500": "zzz"} and codes["5"]["based_on"] == 3
     assert assign_generation(manifest, 3, "h", "0.700", "bbb", "c4") == 4  # old code's rows find their generation
+
+
+# ------------------------------------------------------------------------------------------- the gate (issue 39)
+
+
+def _small_library_config(tmp_path: Path) -> Path:
+    """A library config whose shards are cheap (2 starts, at most 60 uncompiled IPOPT iterations)."""
+    import yaml
+
+    cfg = mapping("library")
+    cfg["problems"]["cr3bp"]["generate"]["starts_per_shard"] = 2
+    cfg["problems"]["cr3bp"]["solver"].update(max_iter=60, compile="none")
+    cfg["ablation"]["iteration_caps"] = [30, 60]
+    path = tmp_path / "library.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+def _fresh_shard(solutions: Path, config: Path, shard: int, alpha: float = 0.5) -> Path:
+    """One shard of ``config`` at α solved now, with today's code, as the generate rule writes it."""
+    from amorgs.data.seeds import shard_seed
+    from amorgs.problems import get_problem
+    from amorgs.solvers.multistart import run_multistart
+
+    cfg = load_config(config)
+    section = cfg.problems.cr3bp
+    table = run_multistart(get_problem("cr3bp"), alpha, shard_seed(cfg.seed, "cr3bp", alpha, shard),
+                           section.generate.starts_per_shard, options=section.solver, progress=False)
+    path = solutions / f"alpha={alpha:.3f}" / f"shard-{shard}.parquet"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table.insert(3, "shard", shard)
+    table.to_parquet(path, index=False)
+    return path
+
+
+def test_the_gate_re_solves_a_seeded_start_and_refuses_what_this_code_did_not_solve(tmp_path):
+    config = _small_library_config(tmp_path)
+    cfg = load_config(config)
+    lib, solutions = tmp_path / "library", tmp_path / "solutions"
+    first = _fresh_shard(solutions, config, 0)
+    assert export_verified(solutions, lib, "cr3bp", cfg, config)["rows_added"] == 2  # today's code reproduces it
+    held = pd.read_parquet(first)
+    shutil.rmtree(solutions)
+    path = _fresh_shard(solutions, config, 1)
+    honest = pd.read_parquet(path)
+    for column, value, message in [("iterations", 1, r"re-solves to .* the shard says"),
+                                   ("nlp_fingerprint", "0123456789ab", r"solved by code with NLP fingerprint "
+                                                                       r"0123456789ab; this code's is")]:
+        forged = honest.copy()
+        forged[column] = forged[column] + value if column == "iterations" else value
+        forged.to_parquet(path, index=False)
+        with pytest.raises(InputError, match=rf"shard-1\.parquet: .*{message}"):
+            export_verified(solutions, lib, "cr3bp", cfg, config)
+    # a shard whose solutions are copied from a held one (under its own seed, shard number and guesses)
+    copied = honest.copy()
+    names = [c for c in honest if c in get_variable_names()]
+    copied[names] = held[names].to_numpy()
+    for c in ("status", "converged", "solver_success", "objective", "iterations", "defect", "verify_defect"):
+        copied[c] = held[c].to_numpy()
+    copied.to_parquet(path, index=False)
+    with pytest.raises(InputError, match=r"start \d's solution is already held \(.*shards-00000-00000\.parquet\)"):
+        export_verified(solutions, lib, "cr3bp", cfg, config, resolve_sample=0)
+    honest.to_parquet(path, index=False)
+    assert export_verified(solutions, lib, "cr3bp", cfg, config)["rows_added"] == 2
+
+
+def get_variable_names() -> tuple[str, ...]:
+    from amorgs.problems import get_problem
+
+    return get_problem("cr3bp").variable_names
+
+
+@pytest.mark.parametrize("forgery", ["max_iter_marked_converged", "objective_nan", "objective_invented"])
+def test_the_gate_recomputes_what_a_shard_says_about_its_rows(tmp_path, forgery):
+    """Rows of a real shard re-labelled as issue 39 found them admitted: converged with solver_success False,
+    status Max_Iter and a re-propagation defect of 1; an objective that is not −m_f."""
+    solutions = real_shards(tmp_path, n=1)
+    shard = next(solutions.glob("alpha=*/shard-*.parquet"))
+    df = pd.read_parquet(shard)
+    bad = int(np.flatnonzero(~df["converged"] & df[list(get_variable_names())].notna().all(axis=1))[0]) \
+        if forgery == "max_iter_marked_converged" else int(np.flatnonzero(df["converged"])[0])
+    if forgery == "max_iter_marked_converged":
+        df.loc[bad, ["converged", "verify_defect"]] = [True, 1.0]
+        match = r"converged True but|solver_success False but"
+    else:
+        df.loc[bad, "objective"] = np.nan if forgery == "objective_nan" else -1e6
+        match = r"objective .* is not the solution's"
+    df.to_parquet(shard, index=False)
+    with pytest.raises(InputError, match=rf"shard-\d+\.parquet: start {df.loc[bad, 'start']}: {match}"):
+        export_verified(solutions, tmp_path / "library", "cr3bp", CFG, CONFIG, resolve_sample=0)
+    assert not (tmp_path / "library" / "cr3bp" / "provenance.json").exists()
+
+
+def test_the_gate_refuses_bad_inputs_in_one_line(tmp_path):
+    lib = tmp_path / "library"
+    export_library(real_shards(tmp_path, n=1), lib, "cr3bp", CFG, CONFIG)
+    import yaml
+
+    other = yaml.safe_load(CONFIG.read_text())
+    other["problems"]["cr3bp"]["alphas"]["train"] = [0.42, 1.0]  # same seed, starts and solver: same identity
+    mine = tmp_path / "mine.yaml"
+    mine.write_text(yaml.safe_dump(other))
+    weird = tmp_path / "weird" / "alpha=0.500" / "shard-abc.parquet"
+    weird.parent.mkdir(parents=True)
+    weird.write_bytes(b"")
+    cases = [(["--solutions-dir", str(tmp_path / "nonexistent"), "--config", str(CONFIG)], "no such directory"),
+             (["--solutions-dir", str(weird.parent.parent), "--config", str(CONFIG)], "not a shard table name"),
+             (["--solutions-dir", str(tmp_path / "solutions"), "--config", str(mine)],
+              "is grown from .* only")]
+    for args, message in cases:
+        res = amorgs("library-export", "--library-dir", str(lib), *args)
+        assert res.returncode != 0 and "Traceback" not in res.stderr, res.stderr
+        assert len(res.stderr.strip().splitlines()) == 1 and __import__("re").search(message, res.stderr), res.stderr

@@ -45,6 +45,7 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import json
+import math
 import subprocess
 from pathlib import Path
 
@@ -419,7 +420,73 @@ def _same_solves(shard: pd.DataFrame, held: pd.DataFrame) -> bool:
     return True
 
 
-def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, cfg, config_file: str | Path) -> dict:
+#: Starts of every new shard that export re-solves (seeded by the shard's seed), by default.
+RESOLVE_SAMPLE = 1
+
+
+def verify_rows(df: pd.DataFrame, problem, options, where: str) -> None:
+    """Recompute what a shard says about its rows instead of trusting it (``InputError`` naming the file, the
+    start and the column otherwise): every row's ``objective`` is the problem's objective of its stored solution
+    (−m_f), ``solver_success`` is the solver's status with the match-point defect within ``feasibility_tol``,
+    and ``converged`` is that success with the solution's independent re-propagation defect (recomputed here,
+    the problem's ``verify_defect``) within ``verify_tol``."""
+    from amorgs.solvers.ipopt import IPOPT_SUCCESS
+
+    names = list(problem.variable_names)
+    for row in df.itertuples(index=False):
+        r = row._asdict()
+        x = np.array([r[n] for n in names], float)
+        start = f"{where}: start {r['start']}"
+        has_x = bool(np.all(np.isfinite(x)))
+        if has_x and r["objective"] != problem.objective(x):
+            raise InputError(f"{start}: objective {r['objective']!r} is not the solution's ({problem.objective(x)!r})")
+        success = bool(has_x and r["status"] in IPOPT_SUCCESS and r["defect"] <= options.feasibility_tol)
+        if bool(r["solver_success"]) != success:
+            raise InputError(f"{start}: solver_success {r['solver_success']} but status {r['status']!r} and "
+                             f"match-point defect {r['defect']!r} (feasibility_tol {options.feasibility_tol})")
+        verify = problem.verify_defect(x, float(r["alpha"])) if success else math.nan
+        converged = bool(success and verify <= options.verify_tol)
+        if bool(r["converged"]) != converged:
+            raise InputError(f"{start}: converged {r['converged']} but the solution re-propagates with defect "
+                             f"{verify:.3g} (verify_tol {options.verify_tol})")
+
+
+def resolve_check(df: pd.DataFrame, solver, problem, where: str, sample: int = RESOLVE_SAMPLE) -> int:
+    """Re-solve ``sample`` starts of one shard (chosen with ``default_rng(seed)``) from their guesses with
+    ``solver`` and require the recorded status, iterations and m_f bit for bit (``InputError`` naming the file
+    and the start otherwise; first, a recorded NLP fingerprint must be ``solver``'s at this α: only the code
+    that made a shard can reproduce it).  Returns the starts re-solved."""
+    if sample <= 0 or not len(df):
+        return 0
+    alpha = float(df["alpha"].iloc[0])
+    held = sorted(set(df[FINGERPRINT]) - {""}) if FINGERPRINT in df else []
+    if held and hasattr(solver, "fingerprint") and held != [solver.fingerprint(alpha)]:
+        raise InputError(f"{where}: solved by code with NLP fingerprint {held[0]}; this code's is "
+                         f"{solver.fingerprint(alpha)} at α = {alpha:g} — export it with the code that made it")
+    rng = np.random.default_rng(int(df["seed"].iloc[0]))
+    rows = df.iloc[np.sort(rng.choice(len(df), size=min(sample, len(df)), replace=False))]
+    guesses = seeded_guesses(rows, problem.name)
+    for (_, row), guess in zip(rows.iterrows(), guesses):
+        again = solver.solve(guess, alpha)
+        m_f, m_f_again = float(row["m_f"]), float(again.x[3])
+        same = (again.status == row["status"] and int(again.iterations) == int(row["iterations"])
+                and (m_f == m_f_again or (math.isnan(m_f) and math.isnan(m_f_again))))
+        if not same:
+            raise InputError(f"{where}: start {row['start']} re-solves to {again.status}, {again.iterations} "
+                             f"iterations, m_f {m_f_again!r}; the shard says {row['status']}, {row['iterations']}, "
+                             f"{m_f!r} — not this code's solve of its seeded guess")
+    return len(rows)
+
+
+def _solution_keys(df: pd.DataFrame, names: list[str]) -> pd.Series:
+    """One bytes key per row's solution vector (NaN rows: no solution, no key)."""
+    x = df[names].to_numpy(float)
+    keys = pd.Series([r.tobytes() for r in x], index=df.index)
+    return keys[np.all(np.isfinite(x), axis=1)]
+
+
+def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: str, cfg, config_file: str | Path,
+                   resolve_sample: int = RESOLVE_SAMPLE) -> dict:
     """Add every finished library-config shard under ``solutions_dir/alpha=*/`` not yet in the library.
 
     ``cfg`` is the typed config read from ``config_file`` (:func:`amorgs.config.load_config`; the file's text —
@@ -431,15 +498,29 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
     ``alpha={label}/shards-{first}-{last}.parquet`` (solutions clipped into the box, see
     :func:`clip_to_bounds`), and the manifest gains its entry.  Nothing new: the library is left untouched.
     Returns a summary: files and rows added, held shards found identical, and the library totals.
+
+    The gate verifies what it admits (issue 39): each new shard's rows are re-verified (:func:`verify_rows`:
+    objective, solver verdict and the independent re-propagation recomputed), its solutions must not repeat a
+    solution the library holds or another new shard brings, and ``resolve_sample`` of its starts are re-solved
+    from their seeded guesses and must reproduce it bit for bit (:func:`resolve_check`).  The manifest's config
+    record changes only through the config file it records (``config/library.yaml``).
     """
     section = getattr(cfg.problems, problem)
     alpha_values = section.alpha_values()
     identity = library_identity(cfg, problem)
     prob = get_problem(problem)
     root = Path(library_dir) / problem
+    if not Path(solutions_dir).is_dir():
+        raise InputError(f"{solutions_dir}: no such directory (--solutions-dir: the generate rule's "
+                         "results/<problem>/solutions of a library-config run)")
     manifest = read_manifest(library_dir, problem)
     if manifest is not None:
         _check_same_library(manifest, identity, section.solver, config_file, root)
+        recorded = manifest.get("config_file")
+        if recorded and Path(recorded).as_posix() != Path(config_file).as_posix() and (
+                Path(recorded).resolve() != Path(config_file).resolve()):
+            raise InputError(f"{config_file}: the library {root} is grown from {recorded} only (its manifest "
+                             "records that file); another config needs its own --library-dir")
     else:
         manifest = {"format": FORMAT, "problem": problem, "files": [], "exports": []}
     holder = {(e["file"].split("/")[0], k): e["file"] for e in manifest["files"] for k in e["shards"]}
@@ -452,6 +533,8 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
     identical = 0
     for path in sorted(Path(solutions_dir).glob("alpha=*/shard-*.parquet")):
         label_dir = path.parent.name
+        if not path.stem.removeprefix("shard-").isdigit():
+            raise InputError(f"{path}: not a shard table name (shard-<index>.parquet)")
         shard = int(path.stem.removeprefix("shard-"))
         df = read_table(path)
         held_file = holder.get((label_dir, shard))
@@ -471,6 +554,8 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
                              "library's config and code")
         identical += 1
 
+    if new:
+        _gate(new, manifest, root, library_dir, problem, prob, section.solver, solutions_dir, resolve_sample)
     files = manifest["files"]
     if not new:
         if not files:
@@ -526,6 +611,31 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
     })
     write_json(manifest, root / MANIFEST)
     return {"files_added": len(new), "rows_added": added_rows, "held_identical": identical, **manifest["totals"]}
+
+
+def _gate(new: dict, manifest: dict, root: Path, library_dir, problem: str, prob, options, solutions_dir,
+          resolve_sample: int) -> None:
+    """The checks of :func:`export_library` on the new shards that their own columns cannot vouch for: rows
+    re-verified, no repeated solution, a seeded sample re-solved (``InputError`` naming the file)."""
+    names = list(prob.variable_names)
+    seen: dict[bytes, str] = {}
+    for entry in manifest["files"]:  # every solution the library holds
+        held = read_library_file(root / entry["file"], library_dir, problem, manifest)
+        seen.update({k: str(root / entry["file"]) for k in _solution_keys(held, names)})
+    solver = prob.make_local_solver(options) if resolve_sample > 0 else None
+    for label_dir, parts in sorted(new.items()):
+        for shard, df in parts:
+            where = f"{solutions_dir}/{label_dir}/shard-{shard}.parquet"
+            df = clip_to_bounds(df, names, prob.lower, prob.upper, where=where)  # the rows as they would be stored
+            verify_rows(df, prob, options, where)
+            keys = _solution_keys(df, names)
+            for start, key in zip(df.loc[keys.index, "start"], keys):
+                if key in seen:
+                    raise InputError(f"{where}: start {start}'s solution is already held ({seen[key]}): a shard "
+                                     "brings solves of its own seeded guesses, never copies")
+                seen[key] = where
+            if solver is not None:
+                resolve_check(df, solver, prob, where, resolve_sample)
 
 
 def _summaries(files: list[dict], codes: dict | None = None) -> dict:
