@@ -62,6 +62,8 @@ def test_merge_orders_shards_and_rejects_duplicates():
         tables.merge_shards([a, a])
     with pytest.raises(ValueError, match="different columns"):
         tables.merge_shards([a, b.drop(columns="defect")])
+    reordered = tables.merge_shards([a, b[list(b.columns)[::-1]]])  # same columns, another order: a's order
+    pd.testing.assert_frame_equal(reordered, merged)
 
 
 def test_atomic_write_keeps_the_old_file_on_failure(tmp_path):

@@ -74,16 +74,18 @@ def validate_solutions(df: pd.DataFrame, variable_names: Sequence[str] | None = 
 def merge_shards(frames: Iterable[pd.DataFrame]) -> pd.DataFrame:
     """Concatenate shard tables of one (problem, α) into one table sorted by ``(shard, start)``.
 
-    The shards must have identical columns and no solve may appear twice (``ValueError`` otherwise).
+    The shards must have the same columns (in any order: the first shard's order is kept) and no solve may
+    appear twice (``ValueError`` otherwise).
     """
     frames = list(frames)
     if not frames:
         raise ValueError("merge_shards needs at least one shard")
     columns = list(frames[0].columns)
     for i, f in enumerate(frames[1:], start=1):
-        if list(f.columns) != columns:
+        if set(f.columns) != set(columns):
             diff = sorted(set(f.columns) ^ set(columns))
             raise ValueError(f"shard {i} has different columns from shard 0: {diff}")
+        frames[i] = f[columns]  # the same columns in another order (a file written before a column moved)
     merged = pd.concat(frames, ignore_index=True).sort_values(["shard", "start"], kind="stable")
     merged = merged.reset_index(drop=True)
     validate_solutions(merged)
