@@ -22,8 +22,8 @@ from pathlib import Path
 from amorgs import layout
 from amorgs.alphas import alpha_label
 from amorgs.config import load_config
-from amorgs.errors import ConfigError
-from amorgs.data.library import export_library, held_shards, read_manifest
+from amorgs.errors import ConfigError, InputError
+from amorgs.data.library import MANIFEST, check_library_config, export_library, held_shards, read_manifest
 
 
 def grown_alphas(config_file: str | Path, problem: str, alphas: list[float] | None = None) -> list[str]:
@@ -109,21 +109,46 @@ def check_grow_arguments(batches: int, hours: float | None, cores: int, niceness
         raise ConfigError(f"--until-converged {until_converged}: give at least 1 converged solution per α")
 
 
+def check_grow_inputs(config_file: str | Path, library_dir: str | Path, problem: str, workdir: str | Path,
+                      profile: str | Path | None, new_library: bool) -> None:
+    """Before any solve: the library exists (or ``new_library`` asks for one) and ``config_file`` may grow it
+    (its identity and file: :func:`~amorgs.data.library.check_library_config`), the profile is a directory and the
+    working directory can be made — else one ``InputError``/``ConfigError`` naming the option or file."""
+    root = Path(library_dir) / problem
+    manifest = read_manifest(library_dir, problem)
+    if manifest is None and not new_library:
+        raise InputError(f"--library-dir {library_dir}: no library there ({root / MANIFEST} missing); "
+                         "--new-library starts one")
+    if manifest is not None:
+        check_library_config(manifest, load_config(config_file), config_file, root, problem)
+    if profile is not None and not Path(profile).is_dir():
+        raise ConfigError(f"--profile {profile}: no such profile directory (e.g. workflow/profiles/slurm)")
+    existing = Path(workdir).resolve()
+    while not existing.exists():  # the nearest existing folder must take the working directory
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK) or existing.is_relative_to("/proc"):
+        raise ConfigError(f"--workdir {workdir}: cannot be created ({existing} is not a writable folder)")
+
+
 def grow(config_file: str | Path, library_dir: str | Path = "data/library", problem: str = "cr3bp",
          workdir: str | Path = "results/library-grow", cores: int = 2, batches: int = 1,
          hours: float | None = None, niceness: int = 19, log=print, alphas: list[float] | None = None,
-         until_converged: int | None = None, profile: str | Path | None = None) -> list[dict]:
+         until_converged: int | None = None, profile: str | Path | None = None,
+         new_library: bool = False) -> list[dict]:
     """Run up to ``batches`` batches (stop starting new ones after ``hours``), exporting after each one;
     ``alphas`` restricts the batches to those library α.  With ``until_converged``, each batch covers only
     the α (of ``alphas``) that still hold fewer verified converged solutions than that, and growth stops
     once none does — so the slow, low-convergence α get the extra batches they need and the others none.
     ``profile`` is the Snakemake profile of every batch (e.g. ``workflow/profiles/slurm``: jobs on the cluster).
+    Everything is checked before the first solve (:func:`check_grow_inputs`; ``new_library``: start a library
+    where there is none).
 
     Returns one export summary per batch (see :func:`export_library`).  ``niceness`` is added to this
     process's priority (and so to Snakemake's and its jobs') before anything starts.
     """
     check_grow_arguments(batches, hours, cores, niceness, until_converged)
     grown_alphas(config_file, problem, alphas)  # a bad α fails before anything starts
+    check_grow_inputs(config_file, library_dir, problem, workdir, profile, new_library)
     if niceness:
         os.nice(niceness)
     t0 = time.monotonic()

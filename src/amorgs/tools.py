@@ -88,8 +88,13 @@ def cmd_models_export(args: argparse.Namespace) -> None:
 def cmd_library_grow(args: argparse.Namespace) -> None:
     from amorgs.library_grow import grow
 
-    grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours, args.nice,
-         alphas=args.alphas, until_converged=args.until_converged, profile=args.profile)
+    summaries = grow(args.config, args.library_dir, args.problem, args.workdir, args.cores, args.batches, args.hours,
+                     args.nice, alphas=args.alphas, until_converged=args.until_converged, profile=args.profile,
+                     new_library=args.new_library)
+    failed = [s for s in summaries if s["snakemake_exit"] != 0]
+    if failed:
+        raise SystemExit(f"library-grow: Snakemake failed in batch {failed[-1]['batch']} (exit "
+                         f"{failed[-1]['snakemake_exit']}); what finished was exported — see its log in {args.workdir}")
 
 
 def cmd_boundary_conditions(args: argparse.Namespace) -> None:
@@ -326,6 +331,8 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", default="config/library.yaml", help="the library config (seed, α, starts per shard)")
     p.add_argument("--problem", default="cr3bp", choices=("cr3bp",), help="problem whose library grows")
     p.add_argument("--library-dir", default="data/library", help="library root")
+    p.add_argument("--new-library", action="store_true",
+                   help="start a new library where --library-dir holds none (otherwise refused)")
     p.add_argument("--workdir", default="results/library-grow", help="Snakemake working directory of the batches")
     p.add_argument("--cores", type=int, default=2, help="cores Snakemake may use (on a cluster: for its local jobs)")
     p.add_argument("--profile", default=None,

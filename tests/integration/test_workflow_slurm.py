@@ -288,8 +288,8 @@ def test_library_grow_runs_its_batch_through_the_cluster_profile(cluster, tmp_pa
     before = set(squeue())
     res = subprocess.run(
         [sys.executable, "-m", "amorgs", "library-grow", "--config", str(tmp_path / "library.yaml"), "--library-dir",
-         str(tmp_path / "library"), "--workdir", str(tmp_path / "work"), "--profile", "workflow/profiles/slurm",
-         "--nice", "0"], capture_output=True, text=True, timeout=900, env=ENV)
+         str(tmp_path / "library"), "--new-library", "--workdir", str(tmp_path / "work"), "--profile",
+         "workflow/profiles/slurm", "--nice", "0"], capture_output=True, text=True, timeout=900, env=ENV)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     assert read_manifest(tmp_path / "library", "cr3bp")["totals"]["rows"] == 2
     submitted = {comment for jobid, (state, comment) in squeue().items() if jobid not in before and state == "COMPLETED"}

@@ -263,7 +263,7 @@ def test_grow_until_converged_picks_the_short_alphas_and_stops_when_none_is_left
     assert sorted(short_alphas(CONFIG, tmp_path / "none", "cr3bp", 1)) == sorted(per_alpha)  # an empty library: all
     said = []
     # every α already holds ≥ 1 converged solution: nothing to grow, no Snakemake started
-    assert grow(CONFIG, LIBRARY, "cr3bp", tmp_path / "work", batches=3, niceness=0, log=said.append,
+    assert grow(LIBRARY_CONFIG, LIBRARY, "cr3bp", tmp_path / "work", batches=3, niceness=0, log=said.append,
                 until_converged=1) == []
     assert said == ["library-grow: every α holds ≥ 1 converged solutions, stopping"]
     assert not (tmp_path / "work").exists()
@@ -433,7 +433,10 @@ def test_grow_runs_a_real_batch_and_exports_it(tmp_path, monkeypatch):
     config.write_text(yaml.safe_dump(cfg))
     lib = tmp_path / "library"
     monkeypatch.chdir(ROOT)
-    first = grow(config, lib, "cr3bp", tmp_path / "work", cores=1, batches=2, niceness=0, log=lambda *_: None)
+    with pytest.raises(InputError, match=r"--library-dir .*library: no library there .* --new-library starts one"):
+        grow(config, lib, "cr3bp", tmp_path / "work", cores=1, batches=2, niceness=0, log=lambda *_: None)
+    first = grow(config, lib, "cr3bp", tmp_path / "work", cores=1, batches=2, niceness=0, log=lambda *_: None,
+                 new_library=True)
     assert [s["batch"] for s in first] == [0, 1] and all(s["snakemake_exit"] == 0 for s in first)
     manifest = read_manifest(lib, "cr3bp")
     assert manifest["totals"]["rows"] == 4 and manifest["totals"]["shards"] == 4
@@ -714,3 +717,22 @@ def test_the_gate_refuses_bad_inputs_in_one_line(tmp_path):
         res = amorgs("library-export", "--library-dir", str(lib), *args)
         assert res.returncode != 0 and "Traceback" not in res.stderr, res.stderr
         assert len(res.stderr.strip().splitlines()) == 1 and __import__("re").search(message, res.stderr), res.stderr
+
+
+def test_grow_refuses_bad_inputs_in_one_line_before_any_solve(tmp_path):
+    """Issue 39: a missing library, another config, a missing profile, a folder that cannot be made — each one
+    line and a non-zero exit, before Snakemake starts (no working directory made)."""
+    smoke = ROOT / "config" / "smoke.yaml"
+    cases = [
+        (["--library-dir", str(tmp_path / "nope")], r"--library-dir .*nope: no library there"),
+        (["--config", str(smoke)], r"smoke\.yaml: not the config of the library"),
+        (["--profile", str(tmp_path / "nope")], r"--profile .*nope: no such profile directory"),
+        (["--workdir", "/proc/x"], r"--workdir /proc/x: cannot be created"),
+    ]
+    for args, message in cases:
+        base = {"--config": str(LIBRARY_CONFIG), "--library-dir": str(LIBRARY), "--workdir": str(tmp_path / "work")}
+        base.update(dict(zip(args[::2], args[1::2])))
+        res = amorgs("library-grow", *[x for kv in base.items() for x in kv], "--nice", "0")
+        assert res.returncode != 0 and "Traceback" not in res.stderr, res.stderr
+        assert len(res.stderr.strip().splitlines()) == 1 and __import__("re").search(message, res.stderr), res.stderr
+        assert not (tmp_path / "work").exists()

@@ -404,6 +404,20 @@ def _check_same_library(manifest: dict, identity: dict, solver, config_file: str
         )
 
 
+def check_library_config(manifest: dict, cfg, config_file: str | Path, root: Path, problem: str) -> None:
+    """Refuse (``InputError`` naming both) a config that may not grow the library of ``manifest``: another
+    identity (:func:`_check_same_library`), or another file than the one the manifest records, even of the same
+    identity (the manifest's config record changes only through that file)."""
+    _check_same_library(manifest, library_identity(cfg, problem), getattr(cfg.problems, problem).solver,
+                        config_file, root)
+    recorded = manifest.get("config_file")
+    given = Path(config_file).resolve().as_posix()
+    if recorded and Path(recorded).as_posix() != Path(config_file).as_posix() and given != Path(recorded).resolve().as_posix() \
+            and not (not Path(recorded).is_absolute() and given.endswith("/" + Path(recorded).as_posix())):
+        raise InputError(f"{config_file}: the library {root} is grown from {recorded} only (its manifest "
+                         "records that file); another config needs its own --library-dir")
+
+
 def _same_solves(shard: pd.DataFrame, held: pd.DataFrame) -> bool:
     """Whether a shard table holds the same solves as the library's rows of that shard (timings aside)."""
     if FINGERPRINT not in shard and FINGERPRINT in held and not held[FINGERPRINT].astype(bool).any():
@@ -515,12 +529,7 @@ def export_library(solutions_dir: str | Path, library_dir: str | Path, problem: 
                          "results/<problem>/solutions of a library-config run)")
     manifest = read_manifest(library_dir, problem)
     if manifest is not None:
-        _check_same_library(manifest, identity, section.solver, config_file, root)
-        recorded = manifest.get("config_file")
-        if recorded and Path(recorded).as_posix() != Path(config_file).as_posix() and (
-                Path(recorded).resolve() != Path(config_file).resolve()):
-            raise InputError(f"{config_file}: the library {root} is grown from {recorded} only (its manifest "
-                             "records that file); another config needs its own --library-dir")
+        check_library_config(manifest, cfg, config_file, root, problem)
     else:
         manifest = {"format": FORMAT, "problem": problem, "files": [], "exports": []}
     holder = {(e["file"].split("/")[0], k): e["file"] for e in manifest["files"] for k in e["shards"]}
