@@ -163,8 +163,17 @@ def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] | None = None
     from amorgs.data.io import atomic_path
     from amorgs.figures.frontier import fig_frontier
 
+    from amorgs.ablation.arms import ARMS
+    from amorgs.data.io import check_writable_folder
+
     if n_boot < MIN_BOOTSTRAP:
         raise InputError(f"--n-boot {n_boot}: a 95 % interval needs at least {MIN_BOOTSTRAP} bootstrap resamples")
+    arms = [a.name for a in ARMS]
+    for option, names in (("--reuse", (reuse,)), ("--learned", learned or ())):
+        unknown = [n for n in names if n not in arms]
+        if unknown:
+            raise InputError(f"{option} {unknown[0]}: not an arm (arms: {', '.join(arms)})")
+    check_writable_folder(dest, "--dest")
     runs = [read_run(d) for d in run_dirs]
     table = frontier_table(runs, learned=learned, reuse=reuse, n_boot=n_boot, seed=seed)
     dest = Path(dest)

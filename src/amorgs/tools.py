@@ -222,7 +222,8 @@ def cmd_reference_certify(args: argparse.Namespace) -> None:
     from pathlib import Path
 
     from amorgs.certification import certify_all, certify_reference, record_at_commit
-    from amorgs.data.io import write_json
+    from amorgs.data.io import check_writable_folder, write_json
+    from amorgs.errors import InputError
 
     if args.all:
         if args.reference or args.at_commit or args.record:
@@ -239,12 +240,12 @@ def cmd_reference_certify(args: argparse.Namespace) -> None:
     if args.record and not args.at_commit:
         raise SystemExit("amorgs reference-certify --record: only with --at-commit (records the commit it stays valid at)")
     output = Path(args.output or f"results/certificates/{Path(args.reference).name}-seed{args.seed}.json")
+    if output.is_dir():
+        raise InputError(f"--output {output}: a directory")
     try:  # refuse an output that cannot be written before any solve
-        output.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise SystemExit(f"--output {output}: cannot create its folder ({exc.strerror})") from None
-    if output.is_dir() or not os.access(output.parent, os.W_OK):
-        raise SystemExit(f"--output {output}: {'a directory' if output.is_dir() else 'its folder is not writable'}")
+        check_writable_folder(output.parent, "--output")
+    except InputError:
+        raise InputError(f"--output {output}: cannot write there") from None
     cert = certify_reference(args.reference, args.sample, args.seed, args.workers, args.at_commit)
     write_json(cert, output)
     verdict = "reproduced exactly" if cert["exact"] else "NOT reproduced"

@@ -27,6 +27,7 @@ import pandas as pd
 from amorgs.ablation.arms import BASELINE_ARM, REUSE_ARM
 from amorgs.ablation.statistics import ERT_TARGETS, art_interval, expected_running_time
 from amorgs.alphas import alpha_label, alpha_value, distinct_alphas, same_alpha
+from amorgs.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -123,7 +124,8 @@ def frontier_table(
         cells = r.cells.assign(alpha=r.cells["alpha"].map(alpha_value))
         missing = {reuse, baseline, *learned} - set(cells["sampler"])
         if missing:
-            raise ValueError(f"run {r.run}: no cells of {sorted(missing)} (the frontier needs them)")
+            raise InputError(f"run {r.run}: no cells of {sorted(missing)} (the frontier needs them; its arms: "
+                             f"{', '.join(sorted(set(cells['sampler'])))})")
         for alpha, g in cells.groupby("alpha", sort=True):
             nearest, delta, rel = gap(alpha, r.train)
             reused = g.loc[g["sampler"] == reuse, "reuse_alpha"]

@@ -58,6 +58,21 @@ def write_parquet(df: pd.DataFrame, path: str | Path) -> None:
         df.to_parquet(tmp, index=False)
 
 
+def check_writable_folder(folder: str | Path, option: str) -> Path:
+    """``folder``, made if missing, after proving that a file can be written in it (a probe file created and
+    removed); otherwise ``InputError`` naming ``option`` — before a command does work it could not save."""
+    from amorgs.errors import InputError
+
+    path = Path(folder)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".amorgs-probe-"):
+            pass
+    except OSError as exc:
+        raise InputError(f"{option} {folder}: cannot write there ({exc.strerror or exc})") from None
+    return path
+
+
 def write_json(obj: object, path: str | Path) -> None:
     """Write ``obj`` as indented JSON (NaN written as ``null``) to ``path`` atomically."""
     text = json.dumps(_nan_to_none(obj), indent=2, sort_keys=True) + "\n"
