@@ -21,6 +21,7 @@ import sys
 
 from amorgs.ablation.arms import ARMS, REUSE_ARM
 from amorgs.config import SCHEMA_PATH
+from amorgs.models.names import PAPER_MODELS
 from amorgs.problems import PROBLEMS
 
 #: One example per tool, shown in its ``--help`` epilog.
@@ -373,7 +374,10 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                         f"at this α's distance from the library's α — {REUSE_ARM}, the library solutions of the "
                         "nearest α, unless a learned arm beat it significantly there; the choice and its reason "
                         "are printed); or " + ", ".join(a.name for a in ARMS if not a.learned)
-                        + ", and the learned " + ", ".join(a.name for a in ARMS if a.learned) + " (need --models-dir)")
+                        + "; the learned " + ", ".join(a.name for a in ARMS if a.learned and set(a.models) <= set(PAPER_MODELS))
+                        + " (their models are shipped in data/models/cr3bp)"
+                        + "".join(f", {a.name}" for a in ARMS if a.learned and not set(a.models) <= set(PAPER_MODELS))
+                        + " (needs a workflow run's models: --models-dir results/cr3bp/models)")
     p.add_argument("--frontier", default="reference/frontier/frontier.csv",
                    help="the frontier table --sampler auto follows (amorgs frontier; default the committed one)")
     p.add_argument("--beta", type=float, default=415.0, help="β: minimum final fuel mass m_f in kg (default 415)")

@@ -161,10 +161,15 @@ def test_same_seed_same_solutions_with_one_worker(designed):
         (["--alpha", "0.42", "-n", "3", "--beta", "1e6", "--max-starts", "1"], "--beta 1e+06: above the largest final mass"),
         (["--alpha", "0.42", "-n", "3", "--beta", "452", "--max-starts", "1"], "m_f ≤ 451.9 kg"),
         (["--alpha", "0.42", "-n", "3", "--seed", "-1", "--max-starts", "1"], "--seed -1"),
+        # issue 39: a frontier file named but missing, an output inside the library, an arm without shipped models
+        (["--alpha", "0.42", "-n", "3", "--frontier", "nope.csv"], "--frontier nope.csv: no such file"),
+        (["--alpha", "0.42", "-n", "3", "--output", "data/library/cr3bp/x"], "inside the solution library"),
+        (["--alpha", "0.42", "-n", "3", "--sampler", "reuse_cvae"], "reuse_cvae.pt: model checkpoint not found"),
     ],
 )
 def test_bad_input_is_one_line_without_traceback(args, names, tmp_path):
-    proc = amorgs("design", *args, "--output", str(tmp_path / "out"), "--no-mlflow", timeout=300)
+    output = [] if "--output" in args else ["--output", str(tmp_path / "out")]
+    proc = amorgs("design", *args, *output, "--no-mlflow", timeout=300)
     assert proc.returncode not in (0, 3)
     assert "Traceback" not in proc.stderr
     lines = [line for line in proc.stderr.splitlines() if line.strip()]

@@ -202,8 +202,9 @@ def test_stage_dependencies(tmp_path):
 
 def test_bad_yaml_and_missing_file(tmp_path):
     (tmp_path / "x.yaml").write_text("seed: [1,\n")
-    with pytest.raises(C.ConfigError, match="not valid YAML"):
+    with pytest.raises(C.ConfigError, match=r"x\.yaml: not valid YAML at line 2, column 1: ") as err:
         C.load_config(tmp_path / "x.yaml")
+    assert "\n" not in str(err.value)
     with pytest.raises(C.ConfigError, match="config file not found"):
         C.load_config(tmp_path / "none.yaml")
 
@@ -294,3 +295,12 @@ def test_jobs_and_targets_follow_the_enabled_stages(tmp_path):
     off = C.load_config(write(tmp_path, data, "dejong_only.yaml"))
     assert not [t for t in steps.targets(off) if t.startswith("results/cr3bp")]
     assert steps.outputs_of("generate", off, "table", alpha="0.349") == ["results/dejong/solutions/alpha=0.349/shard-0.parquet"]
+
+
+@pytest.mark.parametrize("beta", [1e6, 452.0, -1.0])
+def test_beta_beyond_what_a_transfer_can_keep_is_refused_naming_the_key(tmp_path, beta):
+    """Issue 39: `filter.min_final_mass_kg: 1000000` was accepted by the workflow (no solution could count)."""
+    data = mapping()
+    data["problems"]["cr3bp"]["filter"]["min_final_mass_kg"] = beta
+    said = _error(tmp_path, data)
+    assert "problems.cr3bp.filter" in said and "lies outside [0, 451.9] kg" in said

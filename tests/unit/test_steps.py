@@ -87,3 +87,18 @@ def test_snakemake_wildcards_give_the_replicate_its_own_seed():
     train = json.loads(steps.job_spec("train_cr3bp_replicate", cfg, Wildcards(fromdict={"mseed": "13", "model": "lstm"}),
                                       {}, {}, 1))["settings"]
     assert train["seed"] == 13 and train["model"] == "lstm"
+
+
+def test_a_workflow_that_reads_a_missing_library_is_refused_naming_the_key(tmp_path):
+    """Issue 39: with the library enabled and data/library missing, the workflow planned and ran every job with
+    no library and no warning (amorgs design refused the same situation)."""
+    from amorgs.config import from_mapping
+    from amorgs.errors import ConfigError
+    from config_files import mapping
+
+    data = mapping("default")
+    data["problems"]["cr3bp"]["library"].update(enabled=True, path=str(tmp_path / "nope"))
+    with pytest.raises(ConfigError, match=r"problems\.cr3bp\.library\.enabled: no library at .*nope/cr3bp"):
+        steps.check_libraries(from_mapping(data, "test"))
+    data["problems"]["cr3bp"]["library"]["enabled"] = False
+    steps.check_libraries(from_mapping(data, "test"))  # nothing to read, nothing to check

@@ -76,7 +76,7 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
     """
     request.check()
     out = Path(output_dir) if output_dir is not None else default_output_dir(request.alpha)
-    check_output_dir(out)
+    check_output_dir(out, request.library_dir)
     with prepare(request) as prepared, ExitStack() as stack:
         if progress:  # which sampler, and why (auto: the frontier's evidence); stale shipped models
             import sys

@@ -13,13 +13,17 @@ from amorgs.design.search import PROBLEM, DesignResult
 from amorgs.errors import InputError
 
 
-def check_output_dir(output_dir: str | Path) -> None:
+def check_output_dir(output_dir: str | Path, library_dir: str | Path | None = None) -> None:
     """:class:`InputError` naming the folder if the design's files could not be written there (a file in the
-    way, no write permission, a read-only file system) — checked before the first solve, writing nothing
+    way, no write permission, a read-only file system) or it lies inside the solution library ``library_dir``
+    (every later run would refuse the library's unlisted files) — checked before the first solve, writing nothing
     that stays: a folder that exists must take a file; else its nearest existing parent must."""
     import tempfile
 
     out = Path(output_dir)
+    if library_dir is not None and out.resolve().is_relative_to(Path(library_dir).resolve()):
+        raise InputError(f"--output {output_dir}: inside the solution library {library_dir} (its files are only "
+                         "what `amorgs library-export` adds); choose another folder")
     for path in (out, out / "trajectories"):
         if path.exists() and not path.is_dir():
             raise InputError(f"{path}: not a folder (--output {output_dir})")

@@ -248,7 +248,8 @@ def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
     """``request`` with ``--sampler auto`` replaced by the arm the committed frontier (``request.frontier``)
     recommends at ``request.alpha`` — :func:`~amorgs.ablation.frontier.choose_sampler` with the config's
     training α (the library α the samplers draw from) and the arms whose checkpoints ``request.models_dir``
-    holds — and one line saying which and why; any other sampler is kept.  Without the frontier file: reuse."""
+    holds — and one line saying which and why; any other sampler is kept.  Without the committed frontier file:
+    reuse; a ``--frontier`` file named but missing is refused (``InputError``)."""
     from dataclasses import replace
 
     if request.sampler != AUTO_SAMPLER:
@@ -258,6 +259,8 @@ def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
     from amorgs.models.names import CHECKPOINTS
 
     path = Path(request.frontier)
+    if not path.is_file() and Path(request.frontier) != Path(DEFAULT_FRONTIER):
+        raise InputError(f"--frontier {request.frontier}: no such file (a frontier table of `amorgs frontier`)")
     if not path.is_file():
         return (replace(request, sampler=REUSE_ARM),
                 f"sampler {REUSE_ARM} (--sampler auto): no frontier table at {path}, reuse by default")

@@ -39,7 +39,7 @@ from typing import Any
 
 from amorgs.config import Config, Section
 from amorgs.config import Job as JobResources
-from amorgs.errors import InputError
+from amorgs.errors import ConfigError, InputError
 
 Wildcards = Mapping[str, str]
 Outputs = dict[str, "str | list[str]"]
@@ -169,8 +169,10 @@ def check_libraries(cfg: Config) -> None:
 
     for name in type(cfg.problems).model_fields:
         section = getattr(cfg.problems, name)
-        if section.enabled and section.library.enabled:
-            verify_library(section.library.path, name)
+        if section.enabled and section.library.enabled and verify_library(section.library.path, name) is None:
+            raise ConfigError(f"problems.{name}.library.enabled: no library at {section.library.path}/{name} "
+                              f"(no provenance.json) — restore it (git checkout {section.library.path}) or set "
+                              f"problems.{name}.library.enabled: false")
 
 
 def check_rules(rules: Mapping[str, Any]) -> None:

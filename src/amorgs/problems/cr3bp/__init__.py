@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Annotated
 
 import pandas as pd
-from pydantic import ConfigDict, Field
+from pydantic import ConfigDict, Field, model_validator
 from pydantic.dataclasses import dataclass
 
 from amorgs.problems.base import Family, Problem, QualityFilter
@@ -26,6 +26,17 @@ class Cr3bpFilter(QualityFilter):
 
     min_final_mass_kg: Annotated[float, Field(description=(
         "β (kg): keep converged solves whose final mass m_f is at least this (the paper's β: 415 kg)"))] = 415.0
+
+    @model_validator(mode="after")
+    def _reachable(self) -> Cr3bpFilter:
+        """β within [0, the initial fuel]: above it no transfer could count (m_f ≤ the fuel at the start)."""
+        from amorgs.problems.cr3bp.boundary import load_boundary_conditions
+
+        fuel = float(load_boundary_conditions()["initial_state"][6])
+        if not 0.0 <= self.min_final_mass_kg <= fuel:
+            raise ValueError(f"β = {self.min_final_mass_kg:g} kg lies outside [0, {fuel:.1f}] kg: a transfer keeps at "
+                             "most its initial fuel, so no solution could count")
+        return self
 
     def passes(self, table: pd.DataFrame) -> pd.Series:
         return table["m_f"] >= self.min_final_mass_kg
