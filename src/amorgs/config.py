@@ -295,6 +295,29 @@ class Ablation(Section):
         return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
 
 
+class Transfer(Section):
+    """Transfer data (issue 38 §1): the high-quality solutions of one CR3BP training α solved as warm starts at
+    another training α — never a test α —, for every ordered pair (α_from → α_to) with |α_to − α_from| / α_to ≤
+    ``max_relative_gap``, both directions; per pair ``shards`` jobs of ``starts_per_pair`` solutions each, drawn
+    as the reuse arm draws (without replacement while the pool lasts), seeded from ``seed``, solved with the
+    CR3BP solver options (those of the ablation: warm starts) by ``workers`` processes.  Each row is labelled
+    with what the solve gave (status, iterations, m_f, the landing solution): the selector's training data."""
+
+    enabled: Flag = False
+    max_relative_gap: Annotated[float, Field(gt=0, description=(
+        "pairs (α_from → α_to) of training α with |α_to − α_from| / α_to at most this"))] = 0.7
+    starts_per_pair: PositiveInt = 12
+    shards: PositiveInt = 1
+    seed: Seed = 19
+    workers: PositiveInt = 1
+    mem_mb: PositiveInt = 4000
+    runtime_min: PositiveInt = 60
+
+    def job(self) -> Job:
+        """The resources of one transfer job: ``workers`` threads, ``mem_mb`` MB, ``runtime_min`` minutes."""
+        return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
+
+
 class Config(Section):
     """The whole workflow configuration, every default that of the main job (2 cores: the README's time);
     ``seed`` is the base of every derived seed."""
@@ -307,6 +330,7 @@ class Config(Section):
     cr3bp_analysis: Cr3bpAnalysis = Cr3bpAnalysis()
     cr3bp_models: Cr3bpModels = Cr3bpModels()
     ablation: Ablation = Ablation()
+    transfer: Transfer = Transfer()
 
     @property
     def hash(self) -> str:
@@ -336,7 +360,7 @@ class Config(Section):
             raise ValueError("dejong_cvae.enabled needs problems.dejong.enabled: true")
         if self.dejong_cvae.enabled and not dejong.alphas.test:
             raise ValueError("dejong_cvae.enabled needs test α in problems.dejong.alphas.test")
-        for key in ("cr3bp_analysis", "cr3bp_models", "ablation"):
+        for key in ("cr3bp_analysis", "cr3bp_models", "ablation", "transfer"):
             if getattr(self, key).enabled and not cr3bp.enabled:
                 raise ValueError(f"{key}.enabled needs problems.cr3bp.enabled: true")
         for key in ("cr3bp_models", "ablation"):
@@ -349,6 +373,8 @@ class Config(Section):
         if self.ablation.enabled and too_big:
             raise ValueError(f"ablation.iteration_caps {too_big} exceed problems.cr3bp.solver.max_iter = "
                              f"{cr3bp.solver.max_iter}: a cap above the solver's own is not a real cap")
+        if self.transfer.enabled and len(cr3bp.alphas.train_values()) < 2:
+            raise ValueError("transfer.enabled needs at least 2 α in problems.cr3bp.alphas.train (pairs of them)")
         return self
 
 

@@ -3,7 +3,8 @@
 Templates use Snakemake's wildcard syntax: ``{problem}`` (``dejong``, ``cr3bp``), ``{alpha}`` (the α label
 of :func:`amorgs.alphas.alpha_label`, e.g. ``0.150``), ``{shard}`` (0-based), ``{model}`` (``cvae_gmm``,
 ``vanilla_cvae``, ``lstm``), ``{fraction}`` (:func:`fraction_label`, e.g. ``0.1``), ``{sampler}`` (one of
-:data:`amorgs.ablation.arms.SAMPLER_NAMES`), ``{mseed}`` (an extra model-training seed) and ``{name}`` (a figure or table).  The steps
+:data:`amorgs.ablation.arms.SAMPLER_NAMES`), ``{mseed}`` (an extra model-training seed), ``{source}`` (the α label a transfer's guesses come from) and ``{name}``
+(a figure or table).  The steps
 (:mod:`amorgs.steps`: each job's outputs) and the rules' inputs take their file names from here; which files a
 config produces is the union of its jobs' outputs (:func:`amorgs.steps.targets`).
 """
@@ -34,6 +35,8 @@ ABLATION_REPLICATE_CELL = "results/cr3bp/ablation/seed={mseed}/alpha={alpha}/{sa
 #: Cells of a learned arm whose models saw only a fraction of the training data (the learning curve).
 ABLATION_FRACTION_CELL = "results/cr3bp/ablation/fraction={fraction}/alpha={alpha}/{sampler}.parquet"
 ABLATION_SUMMARY = "results/cr3bp/ablation/summary.json"
+#: Transfer data (issue 38): high-quality solutions of training α {source} solved at training α {alpha}.
+TRANSFER_SHARD = "results/{problem}/transfer/alpha={alpha}/from={source}/shard-{shard}.parquet"
 TABLE = "results/tables/{name}"
 
 #: The tables of the structure analysis (:class:`amorgs.analysis.structure_result.StructureResult`) and the

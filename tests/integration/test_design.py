@@ -291,8 +291,8 @@ def test_auto_follows_the_frontier_and_says_why(tmp_path):
     assert chosen.sampler == "amorgs" and "--sampler auto" in why and "beat reuse significantly" in why
     chosen, why = resolve_sampler(DesignRequest(alpha=train[0], n=1, frontier=str(frontier)), cfg)
     assert chosen.sampler == "nearest_alpha" and "library α" in why
-    chosen, why = resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=str(tmp_path / "none.csv")), cfg)
-    assert chosen.sampler == "nearest_alpha" and "no frontier table" in why
+    with pytest.raises(InputError, match=r"--frontier .*none\.csv: no such file"):  # named, so it must exist
+        resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=str(tmp_path / "none.csv")), cfg)
     kept, why = resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, sampler="uniform"), cfg)
     assert kept.sampler == "uniform" and why == "sampler uniform (--sampler)"
     frontier.write_text("not,a\nfrontier,table\n")

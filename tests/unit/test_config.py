@@ -230,8 +230,11 @@ def test_hash_is_stable_and_sensitive():
 #: keys to every effective config: before them default 1072eacfb8f2, smoke 70cf5d5cbe35, study 14008f6cb339,
 #: study-paper 214116ab497f, paper ee4918b2a606 (their solver-option hashes, and so every stored row's, did not
 #: change: the spherical default leaves both keys out of the solver's hash).
-HASHES = {"default": "65b555de46bc", "smoke": "2fba95aa2504", "study": "0a00fa3bde06",
-          "study-paper": "850801f47506", "paper": "480f9580ea9a"}
+#: The section ``transfer`` (issue 38 §1: off by default, on in smoke) added its keys to every effective config:
+#: before it default 65b555de46bc, smoke 2fba95aa2504, study 0a00fa3bde06, study-paper 850801f47506, paper
+#: 480f9580ea9a (no solver options changed: every row's options hash is the same).
+HASHES = {"default": "34f56b9bfa3e", "smoke": "19e5fe1137a6", "study": "686f26e550b3",
+          "study-paper": "d01bdd3a0de9", "paper": "c153d2360a23"}
 
 
 @pytest.mark.parametrize("name", HASHES)
@@ -289,7 +292,7 @@ def test_jobs_and_targets_follow_the_enabled_stages(tmp_path):
     assert ("filter", {"problem": "cr3bp"}) in jobs and ("analyze_cr3bp", {}) in jobs
     assert sum(rule == "ablation_cell" for rule, _ in jobs) == len(cfg.problems.cr3bp.alphas.test) * len(cfg.ablation.samplers)
     data = mapping()
-    for key in ("cr3bp_analysis", "cr3bp_models", "ablation"):
+    for key in ("cr3bp_analysis", "cr3bp_models", "ablation", "transfer"):
         data[key]["enabled"] = False
     data["problems"]["cr3bp"]["enabled"] = False
     off = C.load_config(write(tmp_path, data, "dejong_only.yaml"))

@@ -51,6 +51,7 @@ wildcard_constraints:
     fraction=r"0\.\d+",
     sampler="|".join(SAMPLER_NAMES),
     mseed=r"\d+",
+    source=r"\d+\.\d{3}",
 
 
 # The one command of every rule.

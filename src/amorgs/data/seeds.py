@@ -31,3 +31,13 @@ def cell_seed(base_seed: int, problem: str, alpha: float, sampler: str) -> int:
         raise ValueError(f"base_seed must be ≥ 0, got {base_seed}")
     entropy = [int(base_seed), zlib.crc32(problem.encode()), int(round(float(alpha) * 1_000_000)), zlib.crc32(sampler.encode())]
     return int(np.random.SeedSequence(entropy).generate_state(1, dtype=np.uint32)[0])
+
+
+def transfer_seed(base_seed: int, problem: str, source_alpha: float, alpha: float, shard: int) -> int:
+    """The seed of one transfer shard: the solutions of ``source_alpha`` solved at ``alpha`` (issue 38), mixed
+    like :func:`shard_seed` with the source α as one more integer of micro-units."""
+    if base_seed < 0 or shard < 0:
+        raise ValueError(f"base_seed and shard must be ≥ 0, got {base_seed}, {shard}")
+    entropy = [int(base_seed), zlib.crc32(problem.encode()), int(round(float(source_alpha) * 1_000_000)),
+               int(round(float(alpha) * 1_000_000)), int(shard)]
+    return int(np.random.SeedSequence(entropy).generate_state(1, dtype=np.uint32)[0])

@@ -17,8 +17,6 @@ import os
 from pathlib import Path
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 
 from amorgs.problems.cr3bp import constants as K
 from amorgs.problems.cr3bp.dynamics import (
@@ -48,6 +46,8 @@ def resource_path() -> Path:
 
 def l1_point(mu: float = K.MU) -> float:
     """x-coordinate (DU) of L1, the collinear point between Earth and Moon."""
+    from scipy.optimize import brentq
+
     return brentq(lambda x: gravity_accel(np.array([x, 0.0, 0.0]), mu)[0], 0.5, 1 - mu - 1e-3, xtol=1e-15)
 
 
@@ -70,6 +70,8 @@ def gto_apogee_state(mu: float = K.MU) -> np.ndarray:
 
 def spiral_end_state(mu: float = K.MU) -> np.ndarray:
     """ξ₀: 7-state after the 1 N spiral along the Earth-relative inertial velocity (fuel in kg)."""
+    from scipy.integrate import solve_ivp
+
     t_nd = K.thrust_nd(SPIRAL_THRUST_N)
     mdot_per_thrust = K.mass_flow_kg_per_tu(SPIRAL_THRUST_N) / t_nd
 
@@ -84,6 +86,8 @@ def spiral_end_state(mu: float = K.MU) -> np.ndarray:
 
 def propagate_stm(s0: np.ndarray, t: float, mu: float = K.MU) -> tuple[np.ndarray, np.ndarray]:
     """Ballistic state and 6×6 state-transition matrix after time t (may be negative)."""
+    from scipy.integrate import solve_ivp
+
     y0 = np.concatenate([s0, np.eye(6).ravel()])
     sol = solve_ivp(variational_rhs, (0.0, t), y0, method="DOP853", rtol=RTOL, atol=ATOL, args=(mu,))
     return sol.y[:6, -1], sol.y[6:, -1].reshape(6, 6)
@@ -91,6 +95,8 @@ def propagate_stm(s0: np.ndarray, t: float, mu: float = K.MU) -> tuple[np.ndarra
 
 def _half_period_crossing(s0: np.ndarray, mu: float) -> tuple[float, np.ndarray, np.ndarray]:
     """Propagate until the next y = 0 crossing (after a short time); return (t, state, STM)."""
+    from scipy.integrate import solve_ivp
+
 
     def event(t: float, s: np.ndarray, mu: float) -> float:
         return s[1]
@@ -135,6 +141,8 @@ def halo_orbit(c_target: float, guess: tuple[float, float, float], mu: float = K
 
 def compute_boundary_conditions(mu: float = K.MU) -> dict:
     """Recompute every boundary-condition quantity of spec §3–4 (takes a few seconds)."""
+    from scipy.integrate import solve_ivp
+
     x_l1 = l1_point(mu)
     c_l1 = float(jacobi_constant(np.array([x_l1, 0, 0, 0, 0, 0.0]), mu))
     c_halo = c_l1 - HALO_ENERGY_OFFSET

@@ -1,0 +1,21 @@
+# Transfer data (issue 38 §1): the high-quality solutions of one training α solved as warm starts at another
+# training α, one job per (α_from → α_to, shard), labelled with what each solve gave — the selector's
+# training data.  amorgs.steps.transfer
+
+
+rule transfer:
+    input:
+        high_quality=layout.HIGH_QUALITY.format(problem="cr3bp"),
+    output:
+        **step_outputs("transfer"),
+    log:
+        "logs/transfer/{problem}/alpha={alpha}/from={source}/shard-{shard}.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: step_threads("transfer")
+    resources:
+        **step_resources("transfer"),
+    params:
+        **step_params("transfer"),
+    shell:
+        STEP
