@@ -35,7 +35,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError, field_validator, model_validator
 
-from amorgs.ablation.arms import HEADLINE_ARM, LEARNED_SAMPLER_NAMES, SAMPLER_NAMES, get_arm
+from amorgs.ablation.arms import DEFAULT_SAMPLER_NAMES, HEADLINE_ARM, LEARNED_SAMPLER_NAMES, SAMPLER_NAMES, get_arm
 from amorgs.alphas import alpha_label
 from amorgs.analysis.structure_params import StructureParams
 from amorgs.errors import ConfigError
@@ -269,8 +269,9 @@ class Ablation(Section):
     the learned arms of the learning curve (issue 11 §4)."""
 
     enabled: Flag = True
-    #: Every arm of the table (:data:`amorgs.ablation.arms.ARMS`): the paper's five and the reuse baselines.
-    samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)] = SAMPLER_NAMES  # type: ignore[valid-type]
+    #: Every arm of the table (:data:`amorgs.ablation.arms.ARMS`) but those that need the transfer data
+    #: (``selector``: name it, with ``transfer.enabled``).
+    samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)] = DEFAULT_SAMPLER_NAMES  # type: ignore[valid-type]
     n_starts: PositiveInt = 24
     seed: Seed = 13
     workers: PositiveInt = 2
@@ -373,6 +374,10 @@ class Config(Section):
         if self.ablation.enabled and too_big:
             raise ValueError(f"ablation.iteration_caps {too_big} exceed problems.cr3bp.solver.max_iter = "
                              f"{cr3bp.solver.max_iter}: a cap above the solver's own is not a real cap")
+        needs_transfer = [s for s in self.ablation.samplers if get_arm(s).transfer]
+        if self.ablation.enabled and needs_transfer and not self.transfer.enabled:
+            raise ValueError(f"ablation.samplers {needs_transfer} need transfer.enabled: true (their selector learns "
+                             "from the transfer data)")
         if self.transfer.enabled and len(cr3bp.alphas.train_values()) < 2:
             raise ValueError("transfer.enabled needs at least 2 α in problems.cr3bp.alphas.train (pairs of them)")
         return self

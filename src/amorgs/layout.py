@@ -37,6 +37,9 @@ ABLATION_FRACTION_CELL = "results/cr3bp/ablation/fraction={fraction}/alpha={alph
 ABLATION_SUMMARY = "results/cr3bp/ablation/summary.json"
 #: Transfer data (issue 38): high-quality solutions of training α {source} solved at training α {alpha}.
 TRANSFER_SHARD = "results/{problem}/transfer/alpha={alpha}/from={source}/shard-{shard}.parquet"
+#: The transfer selector trained on every transfer shard of the run (issue 38 §2), and its report.
+SELECTOR_MODEL = "results/cr3bp/models/selector.joblib"
+SELECTOR_REPORT = "results/cr3bp/models/selector.training.json"
 TABLE = "results/tables/{name}"
 
 #: The tables of the structure analysis (:class:`amorgs.analysis.structure_result.StructureResult`) and the

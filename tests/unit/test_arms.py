@@ -17,6 +17,7 @@ from amorgs import layout
 from amorgs.ablation import arms as A
 from amorgs.models.names import CR3BP_MODELS
 from amorgs.models.samplers import CHECKPOINTS
+from amorgs.models.selector import SELECTOR_FILE
 from amorgs.problems import get_problem
 
 
@@ -53,7 +54,9 @@ def test_every_arm_builds_a_valid_sampler_from_what_it_declares(arm, problem, ti
     guesses are valid decision vectors at a test α between the training α."""
     for model in arm.models:
         shutil.copyfile(tiny_models_dir / CHECKPOINTS[model], tmp_path / CHECKPOINTS[model])
-    sampler = A.build_sampler(arm.name, problem, tmp_path if arm.models else None,
+    if arm.transfer:
+        shutil.copyfile(tiny_models_dir / SELECTOR_FILE, tmp_path / SELECTOR_FILE)
+    sampler = A.build_sampler(arm.name, problem, tmp_path if arm.models or arm.transfer else None,
                               high_quality=tiny_hq if arm.high_quality else None,
                               train_alphas=TRAIN_ALPHAS if arm.high_quality else None,
                               perturbation_scale=0.02, gmm_components=2)
@@ -73,6 +76,9 @@ def test_every_arm_refuses_to_build_without_what_it_declares(arm, problem, tiny_
         with pytest.raises(ValueError, match="needs a models directory"):
             A.build_sampler(arm.name, problem, None, high_quality=tiny_hq, train_alphas=TRAIN_ALPHAS)
         with pytest.raises(FileNotFoundError):  # an empty folder: its first checkpoint is missing
+            A.build_sampler(arm.name, problem, tmp_path, high_quality=tiny_hq, train_alphas=TRAIN_ALPHAS)
+    if arm.transfer:
+        with pytest.raises(FileNotFoundError, match="transfer selector not found"):
             A.build_sampler(arm.name, problem, tmp_path, high_quality=tiny_hq, train_alphas=TRAIN_ALPHAS)
     if arm.high_quality:
         with pytest.raises(ValueError, match="high-quality table"):

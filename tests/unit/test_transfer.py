@@ -22,6 +22,8 @@ ROOT = Path(__file__).resolve().parents[2]
 def _config(**transfer):
     data = mapping("smoke")
     data["transfer"].update(transfer)
+    if not data["transfer"]["enabled"]:  # the selector arm learns from the transfer data
+        data["ablation"]["samplers"] = [s for s in data["ablation"]["samplers"] if s != "selector"]
     return from_mapping(data, "test")
 
 

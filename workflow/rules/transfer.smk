@@ -19,3 +19,21 @@ rule transfer:
         **step_params("transfer"),
     shell:
         STEP
+
+
+rule train_selector:
+    input:
+        tables=steps.outputs_of("transfer", CFG, "table"),
+    output:
+        **step_outputs("train_selector"),
+    log:
+        "logs/train_selector.log",
+    conda:
+        "../envs/amorgs.yaml"
+    threads: step_threads("train_selector")
+    resources:
+        **step_resources("train_selector"),
+    params:
+        **step_params("train_selector"),
+    shell:
+        STEP

@@ -50,6 +50,8 @@ class Arm:
     high_quality: it needs the filtered high-quality table and the training α (rows at the training α only).
     pooled: its guesses are rows of that table, a finite pool: its cells of every model seed are slices of
         ONE seeded draw, so the pooled starts are drawn without replacement until the pool is exhausted.
+    transfer: it loads the transfer selector trained on the run's transfer data (``transfer.enabled``;
+        :mod:`amorgs.models.selector`, :data:`amorgs.layout.SELECTOR_MODEL`), as ``inputs.models["selector"]``.
     role: its role in the statistics, a key of :data:`ROLES`.   paper: one of the paper's five (Table 6).
     """
 
@@ -59,6 +61,7 @@ class Arm:
     models: tuple[str, ...] = ()
     high_quality: bool = False
     pooled: bool = False
+    transfer: bool = False
     role: str = "compared"
     paper: bool = False
 
@@ -70,7 +73,7 @@ class Arm:
     @property
     def upfront(self) -> bool:
         """Whether it draws on anything computed before the first new α (the training-α solves, models)."""
-        return self.high_quality or self.learned
+        return self.high_quality or self.learned or self.transfer
 
 
 _SAMPLERS = "amorgs.models.samplers"
@@ -98,12 +101,17 @@ ARMS: tuple[Arm, ...] = (
     # issue 21 §3: reuse's retrieved solutions, each corrected to α by a CVAE conditioned on it
     Arm("reuse_cvae", "Nearest training α + learned correction (reuse-conditioned CVAE)",
         "amorgs.models.reuse_cvae:ReuseCVAESampler.build", models=("reuse_cvae",), high_quality=True, pooled=True),
+    # issue 38 §2: every training α's solutions, in the order a selector trained on transfer data ranks them
+    Arm("selector", "Known solutions ranked by a learned transfer selector", "amorgs.models.selector:SelectorSampler.build",
+        high_quality=True, pooled=True, transfer=True),
 )
 
 #: Name → arm.
 BY_NAME: dict[str, Arm] = {arm.name: arm for arm in ARMS}
 #: Every arm's name, in table order (the order of figures and tables).
 SAMPLER_NAMES: tuple[str, ...] = tuple(BY_NAME)
+#: The arms a config runs unless it names its own: every arm but those that need the transfer data.
+DEFAULT_SAMPLER_NAMES: tuple[str, ...] = tuple(arm.name for arm in ARMS if not arm.transfer)
 #: The arms that load models.
 LEARNED_SAMPLER_NAMES: tuple[str, ...] = tuple(arm.name for arm in ARMS if arm.learned)
 
@@ -176,13 +184,15 @@ def build_sampler(
     train_alphas=None,
     perturbation_scale: float = 0.02,
     gmm_components: int = 5,
+    selector: str | Path | None = None,
 ):
     """The sampler of arm ``name`` for ``problem``: its models loaded (on the CPU) from the checkpoints in
     ``models_dir`` (:func:`amorgs.models.samplers.load_model`), the high-quality table and training α handed
-    over if it needs them.  ``ValueError`` for an unknown arm or a missing input; ``FileNotFoundError`` for a
-    missing checkpoint."""
+    over if it needs them, and for a ``transfer`` arm the selector file ``selector`` (default: the one in
+    ``models_dir``).  ``ValueError`` for an unknown arm or a missing input; ``FileNotFoundError`` for a missing
+    checkpoint."""
     arm = get_arm(name)
-    if arm.models and models_dir is None:
+    if (arm.models or (arm.transfer and selector is None)) and models_dir is None:
         raise ValueError(f"sampler {name!r} needs a models directory")
     if arm.high_quality and (high_quality is None or train_alphas is None):
         raise ValueError(f"sampler {name!r} needs the high-quality table and the training α")
@@ -191,6 +201,14 @@ def build_sampler(
         from amorgs.models.samplers import load_model
 
         models = {m: load_model(Path(models_dir), m) for m in arm.models}
+    if arm.transfer:
+        from amorgs.models.selector import SELECTOR_FILE, TransferSelector
+
+        path = Path(selector) if selector is not None else Path(models_dir) / SELECTOR_FILE
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: transfer selector not found (sampler {name!r} needs one: "
+                                    "transfer.enabled, the train_selector step)")
+        models["selector"] = TransferSelector.load(path)
     inputs = ArmInputs(models=models, high_quality=high_quality if arm.high_quality else None,
                        train_alphas=tuple(train_alphas) if arm.high_quality else None,
                        perturbation_scale=perturbation_scale, gmm_components=gmm_components)

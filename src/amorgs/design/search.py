@@ -257,6 +257,7 @@ def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
     from amorgs.ablation.arms import ARMS
     from amorgs.ablation.frontier import choose_sampler
     from amorgs.models.names import CHECKPOINTS
+    from amorgs.models.selector import SELECTOR_FILE
 
     path = Path(request.frontier)
     if not path.is_file() and Path(request.frontier) != Path(DEFAULT_FRONTIER):
@@ -267,7 +268,8 @@ def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
     try:
         table = pd.read_csv(path)
         models = Path(request.models_dir)
-        available = tuple(a.name for a in ARMS if all((models / CHECKPOINTS[m]).is_file() for m in a.models))
+        available = tuple(a.name for a in ARMS if all((models / CHECKPOINTS[m]).is_file() for m in a.models)
+                          and (not a.transfer or (models / SELECTOR_FILE).is_file()))
         choice = choose_sampler(table, request.alpha, cfg.problems.cr3bp.alphas.train_values(), available=available)
     except (KeyError, ValueError, OSError, pd.errors.ParserError) as exc:
         raise InputError(f"{path}: not a frontier table of `amorgs frontier` ({exc})") from None
@@ -288,6 +290,13 @@ def check_inputs_present(request: DesignRequest) -> None:
         if not path.is_file():
             raise InputError(f"{path}: model checkpoint not found (--models-dir {request.models_dir}; "
                              f"sampler {request.sampler} needs {', '.join(arm.models)})")
+    if arm.transfer:
+        from amorgs.models.selector import SELECTOR_FILE
+
+        path = Path(request.models_dir) / SELECTOR_FILE
+        if not path.is_file():
+            raise InputError(f"{path}: transfer selector not found (--models-dir {request.models_dir}; sampler "
+                             f"{request.sampler} needs a run's selector, e.g. --models-dir results/cr3bp/models)")
     if arm.high_quality and not (Path(request.library_dir) / PROBLEM / MANIFEST).is_file():
         verify_library(request.library_dir, PROBLEM)  # files without a manifest: named
         raise _library_not_found(request.library_dir)
@@ -304,7 +313,7 @@ def make_sampler(request: DesignRequest, cfg, problem):
     section = cfg.problems.cr3bp
     train = tuple(section.alphas.train_values())
     info: dict = {"sampler": request.sampler}
-    models_dir = None
+    models_dir = Path(request.models_dir) if arm.transfer else None  # the selector lies beside the checkpoints
     if arm.models:
         models_dir = Path(request.models_dir)
         from amorgs.models.shipped import verify_models

@@ -128,8 +128,15 @@ def fig23_amorgs_diversity(solves: pd.DataFrame, ground_truth: pd.DataFrame, bet
 # ------------------------------------------------------------------------- issue 11: new arms, new measures
 
 
+#: Colours of the arms past the default cycle's ten (C0–C9), so that no two arms share one.
+_MORE_COLOURS = ("indigo", "teal", "goldenrod", "navy")
+
+
 def _colour(s: str) -> str:
-    return f"C{SAMPLER_NAMES.index(s) % 10}" if s in SAMPLER_NAMES else "k"
+    if s not in SAMPLER_NAMES:
+        return "k"
+    i = SAMPLER_NAMES.index(s)
+    return f"C{i}" if i < 10 else _MORE_COLOURS[(i - 10) % len(_MORE_COLOURS)]
 
 
 #: Rows of the speed-up figure: (aRT table: ``ert`` per high-quality solution or ``ert_distinct`` per new

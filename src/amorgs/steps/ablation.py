@@ -74,6 +74,8 @@ def run_cell(job: Job, run) -> None:
         raise InputError(f"ablation_cell: {s.sampler} needs the high-quality table (input high_quality)")
     if len(models) < len(arm.models):
         raise InputError(f"ablation_cell: {s.sampler} needs the checkpoints {arm.models} (input models)")
+    if arm.transfer and "selector" not in job.input:
+        raise InputError(f"ablation_cell: {s.sampler} needs the transfer selector (input selector)")
     hq = None
     if arm.high_quality:
         import pandas as pd
@@ -81,7 +83,7 @@ def run_cell(job: Job, run) -> None:
         hq = pd.read_parquet(job.input["high_quality"])
     sampler = build_sampler(s.sampler, get_problem("cr3bp"), os.path.dirname(models[0]) if models else None,
                             high_quality=hq, train_alphas=s.train_alphas, perturbation_scale=s.perturbation_scale,
-                            gmm_components=s.gmm_components)
+                            gmm_components=s.gmm_components, selector=job.input.get("selector"))
     df = solve_cell("cr3bp", s.alpha, sampler, s.starts, s.seed, s.solver, job.threads, start_offset=s.start_offset)
     df.insert(2, "model_seed", s.model_seed)
     if s.data_fraction < 1.0:  # a learning-curve cell: its models saw this fraction of the training rows
@@ -122,12 +124,15 @@ def _test_labels(cfg: Config) -> list[str]:
 
 def cell_inputs(sampler: str, model_template: str, wildcards: Wildcards) -> dict[str, str | list[str]]:
     """The named inputs of a cell of ``sampler``: ``models``, the checkpoints its arm loads (none for uniform
-    and the reuse baselines), and for the arms that draw on it ``high_quality``, the filtered table."""
+    and the reuse baselines), for the arms that draw on it ``high_quality``, the filtered table, and for the
+    arms that rank by it ``selector``, the transfer selector."""
     arm = get_arm(sampler)
     inputs: dict[str, str | list[str]] = {
         "models": [model_template.format_map({**dict(wildcards), "model": m}) for m in arm.models]}
     if arm.high_quality:
         inputs["high_quality"] = layout.HIGH_QUALITY.format(problem="cr3bp")
+    if arm.transfer:
+        inputs["selector"] = layout.SELECTOR_MODEL
     return inputs
 
 

@@ -21,7 +21,7 @@ from amorgs.alphas import alpha_label
 from amorgs.config import Config, Section
 from amorgs.data.seeds import transfer_seed
 from amorgs.solvers.options import IpoptOptions
-from amorgs.steps import Job, Step, Wildcards
+from amorgs.steps import Job, Step, Wildcards, resources_of
 
 PROBLEM = "cr3bp"
 
@@ -110,10 +110,87 @@ def run_transfer(job: Job, run) -> None:
           f"{len(hq)} high-quality")
 
 
+class SelectorSettings(Section):
+    """The transfer selector (:class:`~amorgs.models.selector.TransferSelector`): trained on every transfer
+    shard of the run for β = ``beta_kg`` (kg) with ``seed`` and ``max_iter`` boosting iterations per ensemble."""
+
+    beta_kg: float
+    seed: Annotated[int, Field(ge=0)]
+    max_iter: Annotated[int, Field(ge=1)] = 200
+
+
+def selector_settings(cfg: Config, w: Wildcards) -> SelectorSettings:
+    return SelectorSettings(beta_kg=cfg.problems.cr3bp.filter.min_final_mass_kg, seed=cfg.transfer.seed)
+
+
+def selector_jobs(cfg: Config) -> list[dict[str, str]]:
+    return [{}] if transfer_jobs(cfg) else []
+
+
+def held_out_auc(table, settings: SelectorSettings, names) -> dict[str, float | None]:
+    """How well the selector predicts a high-quality landing at a target α it never saw: for each target α, fit
+    on the other targets' rows and score its rows; the ROC AUC of P(hq) over every held-out row (None when the
+    labels hold one class) and Spearman's ρ of predicted vs actual iterations."""
+    import numpy as np
+    from scipy.stats import spearmanr
+    from sklearn.metrics import roc_auc_score
+
+    from amorgs.models.selector import TransferSelector, training_set, transfer_labels
+
+    p, k, hq, iters = [], [], [], []
+    for alpha in sorted(table["alpha"].unique()):
+        train, test = table[table["alpha"] != alpha], table[table["alpha"] == alpha]
+        if not len(train):
+            continue
+        model = TransferSelector(settings.beta_kg, settings.seed, settings.max_iter).fit(train, names)
+        pp, kk = model.predict(training_set(test, names))
+        y, it = transfer_labels(test, settings.beta_kg)
+        p.append(pp), k.append(kk), hq.append(y), iters.append(it)
+    if not p:
+        return {"heldout_auc": None, "heldout_iterations_spearman": None}
+    p, k, hq, iters = (np.concatenate(v) for v in (p, k, hq, iters))
+    auc = float(roc_auc_score(hq, p)) if 0 < hq.sum() < len(hq) else None
+    rho = float(spearmanr(k, iters).statistic) if len(set(iters)) > 1 and len(set(k)) > 1 else None
+    return {"heldout_auc": auc, "heldout_iterations_spearman": rho}
+
+
+def run_selector(job: Job, run) -> None:
+    import pandas as pd
+
+    from amorgs.data.io import write_json
+    from amorgs.models.selector import TransferSelector
+    from amorgs.problems import get_problem
+
+    s: SelectorSettings = job.settings
+    names = get_problem(PROBLEM).variable_names
+    tables = {p: pd.read_parquet(p) for p in job.input["tables"]}
+    table = pd.concat(tables.values(), ignore_index=True)
+    for path, t in tables.items():
+        run.log_dataset(t, path, "training")
+    t0 = time.process_time()
+    selector = TransferSelector(s.beta_kg, s.seed, s.max_iter).fit(table, names)
+    train_cpu_s = time.process_time() - t0
+    selector.save(job.output["model"])
+    hq = (table["converged"].astype(bool) & (table["m_f"] >= s.beta_kg))
+    report = {"model": "selector", "rows": int(len(table)), "shards": len(tables), "high_quality": int(hq.sum()),
+              "pairs": int(table.groupby(["source_alpha", "alpha"]).ngroups), "beta_kg": s.beta_kg,
+              "train_cpu_s": train_cpu_s, **held_out_auc(table, s, names)}
+    write_json(report, job.output["report"])
+    run.log_metrics({k: v for k, v in report.items() if isinstance(v, (int, float)) and k != "model"})
+    run.log_artifact(job.output["model"])
+    run.log_artifact(job.output["report"])
+    print(f"{job.output['model']}: selector on {len(table)} transfers ({int(hq.sum())} high-quality), held-out AUC "
+          f"{report['heldout_auc']}")
+
+
 STAGE = 4.5
 STEPS = (
     Step("transfer", TransferSettings, transfer_settings, run_transfer, transfer_jobs,
          lambda w: {"table": layout.TRANSFER_SHARD.format_map(w)},
          resources=lambda cfg, w: cfg.transfer.job(),
          description="high-quality solutions of one training α solved at another → transfer table (selector data)"),
+    Step("train_selector", SelectorSettings, selector_settings, run_selector, selector_jobs,
+         lambda w: {"model": layout.SELECTOR_MODEL, "report": layout.SELECTOR_REPORT},
+         resources=resources_of("train"),
+         description="every transfer table → the transfer selector (P(high quality), E[iterations]) + report"),
 )
