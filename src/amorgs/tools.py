@@ -20,9 +20,11 @@ import os
 import sys
 
 from amorgs.ablation.arms import ARMS, REUSE_ARM
+from amorgs.analysis.structure_params import ETA
 from amorgs.config import SCHEMA_PATH
 from amorgs.models.names import PAPER_MODELS
 from amorgs.problems import PROBLEMS
+from amorgs.problems.cr3bp import BETA_KG
 
 #: One example per tool, shown in its ``--help`` epilog.
 EXAMPLES = {
@@ -380,8 +382,8 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                         + " (needs a workflow run's models: --models-dir results/cr3bp/models)")
     p.add_argument("--frontier", default="reference/frontier/frontier.csv",
                    help="the frontier table --sampler auto follows (amorgs frontier; default the committed one)")
-    p.add_argument("--beta", type=float, default=415.0, help="β: minimum final fuel mass m_f in kg (default 415)")
-    p.add_argument("--eta", type=float, default=0.02,
+    p.add_argument("--beta", type=float, default=BETA_KG, help=f"β: minimum final fuel mass m_f in kg (default {BETA_KG:g})")
+    p.add_argument("--eta", type=float, default=ETA,
                    help="η of Eq. 12, dimensionless: solutions must differ by more than η in (τ_s/40, τ_i/15, τ_f/15) "
                         "(default 0.02 ≈ 0.8 TU of τ_s or 0.3 TU of τ_i, τ_f)")
     p.add_argument("--seed", type=int, default=0, help="seed of the warm starts; same seed, same result (default 0)")

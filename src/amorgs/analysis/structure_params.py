@@ -99,6 +99,10 @@ class FunnelParams:
             raise ValueError(f"FunnelParams.seed must be ≥ 0, got {self.seed!r}")
 
 
+#: η of Eq. 12 (dimensionless, on (τ_s/40, τ_i/15, τ_f/15)) — defined here only.
+ETA = 0.02
+
+
 @dataclass(frozen=True)
 class DiversityParams:
     """Diversity surrogate of Eq. 12.
@@ -111,7 +115,7 @@ class DiversityParams:
 
     __pydantic_config__ = _FORBID_EXTRA
 
-    eta: float = 0.02
+    eta: float = ETA
     features: str = "times"
     time_scale: tuple[float, float, float] = (40.0, 15.0, 15.0)
 

@@ -43,8 +43,10 @@ import pandas as pd
 
 from amorgs.ablation.arms import REUSE_ARM
 from amorgs.alphas import alpha_label
+from amorgs.analysis.structure_params import ETA
 from amorgs.config import ConfigError
 from amorgs.errors import InputError
+from amorgs.problems.cr3bp import BETA_KG
 from amorgs.solvers.options import IpoptOptions
 
 if TYPE_CHECKING:
@@ -81,8 +83,8 @@ class DesignRequest:
     alpha: float
     n: int
     sampler: str = DEFAULT_SAMPLER
-    beta_kg: float = 415.0
-    eta: float = 0.02
+    beta_kg: float = BETA_KG
+    eta: float = ETA
     seed: int = 0
     workers: int = 2
     round_size: int = 16

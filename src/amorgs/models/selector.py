@@ -31,13 +31,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from amorgs.analysis.structure_params import ETA, DiversityParams
+from amorgs.problems.cr3bp import BETA_KG
+
 #: The selector's file in a models directory (the train_selector step writes it there).
 SELECTOR_FILE = "selector.joblib"
 #: Names of the columns of :func:`transfer_features`, in order.
 FEATURES = ("alpha_to", "alpha_from", "gap", "gap_relative", "gap_signed", "log_ratio", "tau_s", "tau_i", "tau_f",
             "tof", "m_f", "rho_mean", "rho_full", "rho_zero")
 #: Scales of the times in Eq. 12's distance (TU): the upper bounds of τ_s, τ_i, τ_f.
-TIME_SCALES = np.array([40.0, 15.0, 15.0])
+TIME_SCALES = np.asarray(DiversityParams().time_scale, float)
 
 
 def transfer_features(x: np.ndarray, alpha_from, alpha_to: float, names) -> np.ndarray:
@@ -79,7 +82,7 @@ class TransferSelector:
     ``beta_kg``: the β it was trained for (kg).  ``seed``: of both ensembles.  With a single class in the training
     labels, the classifier is replaced by that class's frequency (a constant)."""
 
-    beta_kg: float = 415.0
+    beta_kg: float = BETA_KG
     seed: int = 0
     max_iter: int = 200
     classifier: object | None = field(default=None, repr=False)
@@ -164,7 +167,7 @@ class SelectorSampler:
     deterministic = True  # the same guesses for every rng: the order is the selector's
 
     def __init__(self, problem, high_quality: pd.DataFrame, train_alphas, selector: TransferSelector,
-                 eta: float = 0.02):
+                 eta: float = ETA):
         from amorgs.models.baselines import training_rows
 
         self.problem = problem

@@ -20,12 +20,16 @@ from amorgs.problems.base import Family, Problem, QualityFilter
 from amorgs.solvers.options import IpoptOptions
 
 
+#: β (kg): the paper's threshold of a high-quality solution's final fuel mass m_f — defined here only.
+BETA_KG = 415.0
+
+
 @dataclass(frozen=True, config=ConfigDict(extra="forbid"))
 class Cr3bpFilter(QualityFilter):
     """High quality (β): converged with final mass m_f ≥ ``min_final_mass_kg`` (kg)."""
 
     min_final_mass_kg: Annotated[float, Field(description=(
-        "β (kg): keep converged solves whose final mass m_f is at least this (the paper's β: 415 kg)"))] = 415.0
+        "β (kg): keep converged solves whose final mass m_f is at least this (the paper's β: 415 kg)"))] = BETA_KG
 
     @model_validator(mode="after")
     def _reachable(self) -> Cr3bpFilter:
