@@ -54,7 +54,7 @@ CONFIG_COPY = "config.yaml"
 #: Rules whose named outputs are the reference result (small: tables, figures, summaries).
 EXPORTED_OUTPUTS = {"ablation_report": ("summary", "tables", "figures"), "predict_cr3bp": ("metrics", "figures")}
 #: Rules that solve: their ``table`` output has one row per solve with its ``cpu_s``.
-SOLVE_RULES = ("generate", "ablation_cell", "ablation_cell_replicate", "ablation_cell_fraction")
+SOLVE_RULES = ("generate", "transfer", "ablation_cell", "ablation_cell_replicate", "ablation_cell_fraction")
 #: Rules whose tables are the ablation's starts (:data:`STARTS_FILE`).
 START_RULES = ("ablation_cell", "ablation_cell_replicate", "ablation_cell_fraction")
 #: The compact per-start table of a reference.
@@ -65,7 +65,7 @@ START_COLUMNS = ("problem", "sampler", "model_seed", "alpha", "seed", "start", "
                  "status", "converged", "solver_success", "iterations", "tau_s", "tau_i", "tau_f", "m_f", "objective", "defect",
                  "verify_defect", "cpu_s", "wall_s", "options_hash", "nlp_fingerprint")
 #: Rules that train: their ``report`` output (``<model>.training.json``) holds ``train_cpu_s``.
-TRAIN_RULES = ("train_cr3bp", "train_cr3bp_replicate", "train_cr3bp_fraction")
+TRAIN_RULES = ("train_cr3bp", "train_cr3bp_replicate", "train_cr3bp_fraction", "train_selector")
 
 
 def _relative(path: str) -> str:
