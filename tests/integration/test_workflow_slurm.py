@@ -104,6 +104,8 @@ def rule_resources(cfg, comment: str):
         return rule, getattr(cfg.problems, wildcards.split("_")[0]).generate
     if rule.startswith("ablation_cell"):
         return rule, cfg.ablation
+    if rule == "transfer":
+        return rule, cfg.transfer
     return rule, getattr(cfg.resources, {"analyze_cr3bp": "analyze"}.get(rule, rule.split("_")[0]))
 
 
