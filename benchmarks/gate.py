@@ -59,7 +59,7 @@ def main() -> None:
             verify_s, resolve_s = verify_s + t1 - t0, resolve_s + t2 - t1
             solve_s += float(table["cpu_s"].sum())
             n_rows += len(table)
-        rows.append({"α": alpha, "shards": len(shards), "rows": n_rows,
+        rows.append({"α": f"{alpha:g}", "shards": len(shards), "rows": n_rows,
                      "solve CPU s per shard": solve_s / len(shards),
                      "verify CPU s per shard": verify_s / len(shards),
                      "re-solve CPU s per shard": resolve_s / len(shards),
