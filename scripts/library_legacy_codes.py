@@ -20,6 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from amorgs.checkout import is_reachable
 from amorgs.data.io import write_json
 
 CODES = {
@@ -35,12 +36,10 @@ def git(*args: str) -> str:
 
 def code_of(commit: str, cache: dict) -> str:
     if commit not in cache:
-        if subprocess.run(["git", "cat-file", "-e", f"{commit}^{{commit}}"], capture_output=True).returncode:
+        if not is_reachable(commit, commit):  # not in the repository
             cache[commit] = "unknown"
         else:
-            def after(base: str) -> bool:
-                return subprocess.run(["git", "merge-base", "--is-ancestor", base, commit]).returncode == 0
-            cache[commit] = "C" if after("b676b97") else "B" if after("645f351") else "A"
+            cache[commit] = "C" if is_reachable("b676b97", commit) else "B" if is_reachable("645f351", commit) else "A"
     return cache[commit]
 
 

@@ -92,15 +92,15 @@ def record_entry(dest: str | Path, entry: dict) -> Path:
     return path
 
 
-def _entry(dest: Path) -> dict | None:
-    """The registry entry of ``dest``, else the identity its provenance records (route ``today``), else None."""
+def _entry(dest: Path, provenance: dict) -> dict | None:
+    """The registry entry of ``dest``, else the identity its ``provenance`` (its manifest) records (route
+    ``today``), else None."""
     try:
         entry = read_registry(dest.parent).get("references", {}).get(reference_name(dest))
     except InputError:
         entry = None
     if entry is not None:
         return entry
-    provenance = json.loads((dest / "provenance.json").read_text()) if (dest / "provenance.json").is_file() else {}
     return {"route": "today", **provenance["identity"]} if "identity" in provenance else None
 
 
@@ -166,17 +166,14 @@ def _check_counts(sample: int, workers: int) -> None:
         raise InputError(f"--workers {workers}: at least 1 solver process")
 
 
-def resolve_sample(dest: str | Path, sample: int = 20, seed: int = 0, workers: int = 1) -> dict:
-    """Re-solve ``sample`` of the starts of ``dest`` (drawn without replacement with
-    ``numpy.random.default_rng(seed)``) from their stored guesses with this checkout's solver and the options of
-    the run's config, and compare (:func:`compare_resolves`); no identity check (see :func:`certify_reference`)."""
+def _resolve_sample(dst: Path, manifest: dict, starts: pd.DataFrame, sample: int, seed: int, workers: int) -> dict:
+    """Re-solve ``sample`` of the ``starts`` of the verified reference ``dst`` (manifest ``manifest``; drawn
+    without replacement with ``numpy.random.default_rng(seed)``) from their stored guesses with this checkout's
+    solver and the options of the run's config, and compare (:func:`compare_resolves`); no identity check (see
+    :func:`certify_reference`)."""
     from amorgs.problems import get_problem
     from amorgs.solvers.multistart import solve_guesses
 
-    dst = Path(dest)
-    manifest = verify_reference(dst)
-    starts = _read_starts(dst)
-    _check_counts(sample, workers)
     problem = get_problem("cr3bp")
     options = load_config(dst / CONFIG_COPY).problems.cr3bp.solver
     rng = np.random.default_rng(seed)
@@ -218,13 +215,13 @@ def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers
       the recorded fingerprints (``InputError`` otherwise: the environment changed), runs that commit's own
       ``amorgs reference-certify``.
 
-    Returns the certificate (:func:`resolve_sample`'s keys plus ``route``, ``code_commit``, ``nlp_fingerprints``
+    Returns the certificate (:func:`_resolve_sample`'s keys plus ``route``, ``code_commit``, ``nlp_fingerprints``
     and ``environment``); ``exact`` says whether every re-solve matched bit for bit."""
     dst = Path(dest)
-    verify_reference(dst)
+    manifest = verify_reference(dst)
     starts = _read_starts(dst)
     _check_counts(sample, workers)
-    entry = _entry(dst)
+    entry = _entry(dst, manifest)
     if entry is not None and entry["route"] == "historical":
         raise InputError(f"{dst}: historical, not certifiable — {entry.get('why', 'no reason recorded')}")
     alphas = sorted(set(starts["alpha"].astype(float)))
@@ -241,7 +238,7 @@ def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers
                 f"{dst}: made by the code of commit {commit} ({'; '.join(diff)} here at "
                 f"{git_state(Path.cwd())['git_commit'][:12]}): this code cannot reproduce it — certify it at its "
                 f"commit (--at-commit {commit}), or re-run it")
-        cert = resolve_sample(dst, sample, seed, workers)
+        cert = _resolve_sample(dst, manifest, starts, sample, seed, workers)
         return {**cert, "route": "today", "code_commit": cert["git_commit"],
                 "nlp_fingerprints": here["nlp_fingerprints"], "environment": here["environment"]}
 

@@ -26,11 +26,6 @@ def cache_dir() -> Path:
     return Path(os.environ.get("AMORGS_CACHE_DIR", Path.home() / ".cache" / "amorgs"))
 
 
-def cpu_identity() -> str:
-    """CPU model and instruction-set flags (part of the cache key when code is built with -march=native)."""
-    return cpu_model()
-
-
 def compiled_library_path(name: str, nlp: dict, hessian: str, identity: dict, flags: str,
                           sources: tuple[Path, ...] = ()) -> Path:
     """Where the compile cache keeps the library of ``nlp`` (see :func:`compiled_nlp_library`).
@@ -51,7 +46,7 @@ def compiled_library_path(name: str, nlp: dict, hessian: str, identity: dict, fl
             "casadi": ca.__version__,
             "machine": platform.machine(),
             "flags": flags,
-            "cpu": cpu_identity() if "native" in flags else "",
+            "cpu": cpu_model() if "native" in flags else "",
             "sources": [hashlib.sha256(Path(src).read_bytes()).hexdigest() for src in sources],
             "format": 1,
         },

@@ -266,7 +266,7 @@ def source_path() -> Path:
 
 def library_path() -> Path:
     """The kernel compiled on its own (:data:`KERNEL_FLAGS`; the key holds the CPU model for ``-march=native``)."""
-    from amorgs.solvers.codegen import cpu_identity
+    from amorgs.solvers.fingerprint import cpu_model
 
     source = source_path()
 
@@ -274,7 +274,7 @@ def library_path() -> Path:
         subprocess.run(["gcc", *KERNEL_FLAGS.split(), "-fPIC", "-shared", str(source), "-o", str(path), "-lm"],
                        check=True, capture_output=True)
 
-    return _cached_file(c_source() + KERNEL_FLAGS + cpu_identity(), ".so", build)
+    return _cached_file(c_source() + KERNEL_FLAGS + cpu_model(), ".so", build)
 
 
 def rk8_step() -> ca.Function:
