@@ -270,7 +270,7 @@ class Ablation(Section):
 
     enabled: Flag = True
     #: Every arm of the table (:data:`amorgs.ablation.arms.ARMS`) but those that need the transfer data
-    #: (``selector``: name it, with ``transfer.enabled``).
+    #: (``selector``, ``amorgs_selected``: name them, with ``transfer.enabled``).
     samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)] = DEFAULT_SAMPLER_NAMES  # type: ignore[valid-type]
     n_starts: PositiveInt = 24
     seed: Seed = 13
@@ -279,6 +279,9 @@ class Ablation(Section):
     runtime_min: PositiveInt = 60
     perturbation_scale: Annotated[float, Field(ge=0)] = 0.02  # σ in the box-normalised space
     gmm_components: PositiveInt = 5  # mixture components per training α
+    selection_oversample: PositiveInt = Field(
+        5, description="proposals drawn per start by amorgs_selected: the transfer selector solves the best "
+                       "1/selection_oversample of them (issue 38 §3)")
     iteration_caps: tuple[PositiveInt, ...] = (25, 50, 100, 200, 400, 1000)  # fixed before the solves, ≤ max_iter
     beta_sweep_kg: tuple[float, ...] = (425.0, 430.0, 435.0)  # the filter's β is always included
     n_boot: PositiveInt = 2000

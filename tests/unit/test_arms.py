@@ -77,7 +77,9 @@ def test_every_arm_refuses_to_build_without_what_it_declares(arm, problem, tiny_
             A.build_sampler(arm.name, problem, None, high_quality=tiny_hq, train_alphas=TRAIN_ALPHAS)
         with pytest.raises(FileNotFoundError):  # an empty folder: its first checkpoint is missing
             A.build_sampler(arm.name, problem, tmp_path, high_quality=tiny_hq, train_alphas=TRAIN_ALPHAS)
-    if arm.transfer:
+    if arm.transfer:  # its checkpoints present, the selector missing
+        for model in arm.models:
+            shutil.copyfile(tiny_models_dir / CHECKPOINTS[model], tmp_path / CHECKPOINTS[model])
         with pytest.raises(FileNotFoundError, match="transfer selector not found"):
             A.build_sampler(arm.name, problem, tmp_path, high_quality=tiny_hq, train_alphas=TRAIN_ALPHAS)
     if arm.high_quality:

@@ -6,8 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from amorgs.models.baselines import UniformSampler
 from amorgs.models.selector import (
     FEATURES,
+    SelectedProposalSampler,
     SelectorSampler,
     TransferSelector,
     selection_order,
@@ -95,3 +97,26 @@ def test_the_arm_draws_every_training_alpha_in_the_selectors_order():
     np.testing.assert_array_equal(first[30:], first[:15])  # beyond the candidates: the order again
     np.testing.assert_array_equal(first, sampler.sample(0.55, 45, np.random.default_rng(99)))  # no randomness
     assert not set(map(tuple, first[:, :4])) & set(map(tuple, hq[hq["alpha"] == 0.8][list(NAMES[:4])].to_numpy()))
+
+
+def test_selection_on_top_of_generation_solves_the_best_ranked_proposals():
+    """Issue 38 §3: of oversample × n proposals the n the selector ranks best, best first, seeded by the rng;
+    the selector (long transfers fail) keeps short ones, and oversample 1 only reorders the generator's draw."""
+    selector = TransferSelector().fit(synthetic_transfers(), NAMES)
+    generator = UniformSampler(PROBLEM)
+    picked = SelectedProposalSampler(PROBLEM, generator, selector, oversample=6)
+    x = picked.sample(0.5, 10, np.random.default_rng(3))
+    proposals = generator.sample(0.5, 60, np.random.default_rng(3))
+    ranked, scores = picked.ranked(0.5, 10, np.random.default_rng(3))
+    np.testing.assert_array_equal(x, ranked[:10])
+    assert sorted(map(tuple, ranked)) == sorted(map(tuple, proposals))  # a reordering of the draw
+    assert scores[0] == scores.min()
+    all_scores = selector.score(transfer_features(proposals, 0.5, 0.5, NAMES))
+    assert scores[:10].mean() < np.median(all_scores)  # the chosen are the better ranked
+    assert x[:, :3].sum(axis=1).mean() < proposals[:, :3].sum(axis=1).mean()  # shorter than the draw's mean
+    np.testing.assert_array_equal(x, picked.sample(0.5, 10, np.random.default_rng(3)))
+    once = SelectedProposalSampler(PROBLEM, generator, selector, oversample=1).sample(0.5, 10, np.random.default_rng(3))
+    assert sorted(map(tuple, once)) == sorted(map(tuple, generator.sample(0.5, 10, np.random.default_rng(3))))
+    assert picked.sample(0.5, 0, np.random.default_rng(3)).shape == (0, len(NAMES))
+    with pytest.raises(ValueError, match="oversample"):
+        SelectedProposalSampler(PROBLEM, generator, selector, oversample=0)

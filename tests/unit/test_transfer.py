@@ -14,6 +14,7 @@ from amorgs import steps
 from amorgs.config import ConfigError, from_mapping, load_config
 from amorgs.data.library import read_library
 from amorgs.problems.cr3bp import Cr3bpFilter
+from amorgs.ablation.arms import get_arm
 from amorgs.steps.transfer import transfer_pairs
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -22,8 +23,8 @@ ROOT = Path(__file__).resolve().parents[2]
 def _config(**transfer):
     data = mapping("smoke")
     data["transfer"].update(transfer)
-    if not data["transfer"]["enabled"]:  # the selector arm learns from the transfer data
-        data["ablation"]["samplers"] = [s for s in data["ablation"]["samplers"] if s != "selector"]
+    if not data["transfer"]["enabled"]:  # the selector's arms learn from the transfer data
+        data["ablation"]["samplers"] = [s for s in data["ablation"]["samplers"] if not get_arm(s).transfer]
     return from_mapping(data, "test")
 
 

@@ -104,6 +104,9 @@ ARMS: tuple[Arm, ...] = (
     # issue 38 §2: every training α's solutions, in the order a selector trained on transfer data ranks them
     Arm("selector", "Known solutions ranked by a learned transfer selector", "amorgs.models.selector:SelectorSampler.build",
         high_quality=True, pooled=True, transfer=True),
+    # issue 38 §3: AmorGS draws several times the budget, the selector picks which proposals to solve
+    Arm("amorgs_selected", "AmorGS proposals ranked by the transfer selector",
+        "amorgs.models.selector:SelectedProposalSampler.build_amorgs", models=("cvae_gmm", "lstm"), transfer=True),
 )
 
 #: Name → arm.
@@ -158,6 +161,7 @@ class ArmInputs:
     train_alphas: the training α, the only α whose rows may be used (arms with ``high_quality``).
     perturbation_scale: σ of the perturbed reuse arm, in the box-normalised space (dimensionless).
     gmm_components: mixture components per training α of the GMM arm.
+    selection_oversample: proposals drawn per start by the arms that select among a generator's proposals.
     """
 
     models: Mapping[str, Any]
@@ -165,6 +169,7 @@ class ArmInputs:
     train_alphas: tuple[float, ...] | None = None
     perturbation_scale: float = 0.02
     gmm_components: int = 5
+    selection_oversample: int = 5
 
 
 def resolve(dotted: str):
@@ -185,6 +190,7 @@ def build_sampler(
     perturbation_scale: float = 0.02,
     gmm_components: int = 5,
     selector: str | Path | None = None,
+    selection_oversample: int = 5,
 ):
     """The sampler of arm ``name`` for ``problem``: its models loaded (on the CPU) from the checkpoints in
     ``models_dir`` (:func:`amorgs.models.samplers.load_model`), the high-quality table and training α handed
@@ -211,5 +217,6 @@ def build_sampler(
         models["selector"] = TransferSelector.load(path)
     inputs = ArmInputs(models=models, high_quality=high_quality if arm.high_quality else None,
                        train_alphas=tuple(train_alphas) if arm.high_quality else None,
-                       perturbation_scale=perturbation_scale, gmm_components=gmm_components)
+                       perturbation_scale=perturbation_scale, gmm_components=gmm_components,
+                       selection_oversample=selection_oversample)
     return resolve(arm.builder)(problem, inputs)

@@ -333,7 +333,8 @@ def make_sampler(request: DesignRequest, cfg, problem):
     try:
         sampler = build_sampler(request.sampler, problem, models_dir=models_dir, high_quality=hq, train_alphas=train,
                                 perturbation_scale=cfg.ablation.perturbation_scale,
-                                gmm_components=cfg.ablation.gmm_components)
+                                gmm_components=cfg.ablation.gmm_components,
+                                selection_oversample=cfg.ablation.selection_oversample)
     except (OSError, RuntimeError) as exc:  # unreadable checkpoint
         raise InputError(f"{models_dir}: cannot load the models of sampler {request.sampler}: {exc}") from None
     by_alpha = getattr(sampler, "by_alpha", None)

@@ -17,7 +17,12 @@ from the transfer data (:mod:`amorgs.steps.transfer`: solutions of one training 
   not only the nearest; they are solved in order of score, without replacement, skipping a candidate whose
   times lie within η (Eq. 12's distance on (τ_s/40, τ_i/15, τ_f/15)) of one already chosen — a proxy of its
   landing basin, so that a designer gets different trajectories — until the distinct ones are used up, then
-  the skipped ones in score order.
+  the skipped ones in score order;
+* :class:`SelectedProposalSampler` (arm ``amorgs_selected``, issue 38 §3) — selection on top of generation:
+  ``oversample`` × n proposals of a generator (AmorGS) at the target α, the n that the same selector ranks best
+  (the same :func:`selection_order`) solved.  A proposal is a guess made *for* the target α, so it is scored as a
+  warm start from the target α itself (gap 0); the transfer data hold only pairs of distinct α, so the trees
+  answer for gap 0 as for their smallest gap — what they rank on is the proposal's own times, fuel and throttle.
 
 The decision-vector layout is the CR3BP's (``tau_s, tau_i, tau_f, m_f, theta_01, phi_01, rho_01, …``).
 """
@@ -198,3 +203,38 @@ class SelectorSampler:
         rows, _ = self.ranked(alpha)
         repeats = math.ceil(n / len(rows)) if len(rows) else 0
         return make_valid(np.tile(rows, (max(repeats, 1), 1))[:n], self.problem)
+
+
+class SelectedProposalSampler:
+    """Selection on top of generation (module docstring): ``oversample`` × n proposals of ``generator`` drawn
+    with ``rng``, scored by ``selector`` at gap 0, the first n of :func:`selection_order` returned in that order
+    (the solver takes them best first).  Not pooled: each cell draws its own proposals."""
+
+    def __init__(self, problem, generator, selector: TransferSelector, oversample: int = 5, eta: float = ETA,
+                 name: str = "amorgs_selected"):
+        if oversample < 1:
+            raise ValueError(f"oversample must be ≥ 1, got {oversample}")
+        self.problem, self.generator, self.selector = problem, generator, selector
+        self.oversample, self.eta, self.name = int(oversample), float(eta), name
+
+    @classmethod
+    def build_amorgs(cls, problem, inputs) -> SelectedProposalSampler:
+        """Arm ``amorgs_selected``: AmorGS's proposals (CVAE time & mass, LSTM controls), ranked."""
+        from amorgs.models.samplers import AmorGSSampler
+
+        return cls(problem, AmorGSSampler.build(problem, inputs), inputs.models["selector"],
+                   inputs.selection_oversample, name="amorgs_selected")
+
+    def ranked(self, alpha: float, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """(all ``oversample`` × n proposals in selection order, their scores)."""
+        names = self.problem.variable_names
+        proposals = self.generator.sample(alpha, self.oversample * n, rng)
+        scores = self.selector.score(transfer_features(proposals, float(alpha), float(alpha), names))
+        times = proposals[:, [list(names).index(v) for v in ("tau_s", "tau_i", "tau_f")]]
+        order = selection_order(scores, times, self.eta)
+        return proposals[order], scores[order]
+
+    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        if n <= 0:
+            return np.empty((0, len(self.problem.variable_names)))
+        return self.ranked(alpha, n, rng)[0][:n]

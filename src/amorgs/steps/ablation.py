@@ -39,6 +39,7 @@ class CellSettings(Section):
     train_alphas: tuple[float, ...]
     perturbation_scale: Annotated[float, Field(ge=0)]
     gmm_components: Annotated[int, Field(ge=1)]
+    selection_oversample: Annotated[int, Field(ge=1)] = 5
     data_fraction: Annotated[float, Field(gt=0, le=1)] = 1.0
     start_offset: Annotated[int, Field(ge=0)] = 0
 
@@ -58,7 +59,8 @@ def _cell_settings(cfg: Config, w: Wildcards) -> CellSettings:
     return CellSettings(alpha=alpha, sampler=w["sampler"], model_seed=model_seed,
                         starts=a.n_starts, seed=cell_seed(a.seed, "cr3bp", alpha, name), solver=cr3bp.solver,
                         train_alphas=cr3bp.alphas.train_values(), perturbation_scale=a.perturbation_scale,
-                        gmm_components=a.gmm_components, data_fraction=fraction, start_offset=offset)
+                        gmm_components=a.gmm_components, selection_oversample=a.selection_oversample,
+                        data_fraction=fraction, start_offset=offset)
 
 
 def run_cell(job: Job, run) -> None:
@@ -83,7 +85,8 @@ def run_cell(job: Job, run) -> None:
         hq = pd.read_parquet(job.input["high_quality"])
     sampler = build_sampler(s.sampler, get_problem("cr3bp"), os.path.dirname(models[0]) if models else None,
                             high_quality=hq, train_alphas=s.train_alphas, perturbation_scale=s.perturbation_scale,
-                            gmm_components=s.gmm_components, selector=job.input.get("selector"))
+                            gmm_components=s.gmm_components, selector=job.input.get("selector"),
+                            selection_oversample=s.selection_oversample)
     df = solve_cell("cr3bp", s.alpha, sampler, s.starts, s.seed, s.solver, job.threads, start_offset=s.start_offset)
     df.insert(2, "model_seed", s.model_seed)
     if s.data_fraction < 1.0:  # a learning-curve cell: its models saw this fraction of the training rows
