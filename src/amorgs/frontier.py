@@ -186,7 +186,10 @@ def aggregate(run_dirs, dest: str | Path, learned: tuple[str, ...] | None = None
         tmp.write_text(markdown_table(shown, "**The frontier: aRT in IPOPT iterations per high-quality solution "
                                              "(target high_quality) and per new η-distinct optimum (distinct); "
                                              "ratio_to_reuse = aRT(learned) ÷ aRT(reuse), < 1: learning wins; "
-                                             "bootstrap 95 %**"))
+                                             "bootstrap 95 %; aRT_oracle: the arm's aRT had it solved only "
+                                             "the starts that found something, oracle_to_reuse = aRT_oracle "
+                                             "÷ aRT(reuse) (reuse row: the limit of any selector over reuse's "
+                                             "candidates)**"))
     figure = fig_frontier(table)
     with atomic_path(png) as tmp:
         figure.savefig(tmp, format="png", dpi=120)

@@ -80,8 +80,14 @@ def cmd_library_export(args: argparse.Namespace) -> None:
 
 def cmd_models_export(args: argparse.Namespace) -> None:
     from amorgs.config import load_config
-    from amorgs.models.shipped import export_models
+    from amorgs.models.shipped import export_models, export_selector
 
+    if args.selector:
+        manifest = export_selector(args.models_dir, args.dest, load_config(args.config), args.config, args.library_dir)
+        record = manifest["selector"]
+        print(f"{args.dest}: selector of {args.config} (transfer pairs of {len(record['train_alphas'])} α) shipped "
+              f"beside the checkpoints; manifest {args.dest}/provenance.json")
+        return
     manifest = export_models(args.models_dir, args.dest, load_config(args.config), args.config, args.library_dir)
     size = sum(f["bytes"] for f in manifest["files"])
     print(f"{args.dest}: {len(manifest['files'])} checkpoints ({size / 1e6:.2f} MB), trained on a library of "
@@ -129,11 +135,13 @@ def _compare(stored: object, fresh: object, path: str, rel_tol: float) -> list[s
 
 def cmd_design(args: argparse.Namespace) -> None:
     from amorgs.design import DesignRequest, run_design
+    from amorgs.design.search import DEFAULT_FRONTIERS
 
     request = DesignRequest(
         alpha=args.alpha, n=args.n, sampler=args.sampler, beta_kg=args.beta, eta=args.eta, seed=args.seed,
         workers=args.workers, round_size=args.round_size, max_starts=args.max_starts, max_cpu_s=args.max_cpu_s,
-        library_dir=args.library_dir, models_dir=args.models_dir, config=args.config, frontier=args.frontier,
+        library_dir=args.library_dir, models_dir=args.models_dir, config=args.config,
+        frontier=tuple(args.frontier) if args.frontier else DEFAULT_FRONTIERS,
     )
     result, paths = run_design(request, args.output, track=not args.no_mlflow, store_dir=args.mlflow_dir,
                                progress=not args.quiet)
@@ -324,6 +332,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dest", default="data/models/cr3bp", help="where the shipped checkpoints live")
     p.add_argument("--config", default="config/default.yaml", help="the config of the run that trained them")
     p.add_argument("--library-dir", default="data/library", help="the library they were trained on (its hash is recorded)")
+    p.add_argument("--selector", action="store_true",
+                   help="ship the run's transfer selector (selector.joblib) beside the shipped checkpoints instead, "
+                        "e.g. --config config/selector-model.yaml --models-dir <its run>/results/cr3bp/models")
     p.set_defaults(func=cmd_models_export)
 
     p = sub.add_parser(
@@ -380,8 +391,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                         + " (their models are shipped in data/models/cr3bp)"
                         + "".join(f", {a.name}" for a in ARMS if a.learned and not set(a.models) <= set(PAPER_MODELS))
                         + " (needs a workflow run's models: --models-dir results/cr3bp/models)")
-    p.add_argument("--frontier", default="reference/frontier/frontier.csv",
-                   help="the frontier table --sampler auto follows (amorgs frontier; default the committed one)")
+    p.add_argument("--frontier", nargs="+", default=None, metavar="CSV",
+                   help="the frontier tables --sampler auto follows, read together (amorgs frontier; default the "
+                        "committed ones: the five arms' and the transfer selector's under reference/)")
     p.add_argument("--beta", type=float, default=BETA_KG, help=f"β: minimum final fuel mass m_f in kg (default {BETA_KG:g})")
     p.add_argument("--eta", type=float, default=ETA,
                    help="η of Eq. 12, dimensionless: solutions must differ by more than η in (τ_s/40, τ_i/15, τ_f/15) "

@@ -308,3 +308,47 @@ def test_auto_follows_the_frontier_and_says_why(tmp_path):
     assert "older library (828 solves)" in note and "retrain" in note
     same = {**shipped, "library_manifest_sha256": sha256_file("data/library/cr3bp/provenance.json")}
     assert stale_models_note(same, "data/library", "data/models/cr3bp") == ""
+
+
+def test_auto_reads_every_frontier_table_and_picks_a_transfer_arm_only_with_its_selector(tmp_path, monkeypatch):
+    """--sampler auto reads several frontier tables together (the five arms' and the selector's), names the
+    table of each measurement it rests on, and picks the selector where it measured significantly better than
+    reuse — only when the models folder holds a selector; a default table that is missing is skipped."""
+    import shutil
+
+    import pandas as pd
+
+    from amorgs.config import load_config
+    from amorgs.design.search import DEFAULT_FRONTIERS, DesignRequest, resolve_sampler
+    from amorgs.errors import InputError
+
+    cfg = load_config("config/default.yaml")
+    train = cfg.problems.cr3bp.alphas.train_values()
+    gap_alpha = 0.5 * (train[0] + train[1])
+    rel = (gap_alpha - train[0]) / gap_alpha
+    row = {"design": "loo", "alpha": 0.3, "gap_relative": rel, "target": "high_quality", "unit": "iterations"}
+    paths = []
+    for folder, arm, ratio, high in (("arms", "amorgs", 1.4, 2.5), ("selection", "selector", 0.4, 0.6)):
+        (tmp_path / folder).mkdir()
+        paths.append(str(tmp_path / folder / "frontier.csv"))
+        pd.DataFrame([{**row, "run": "loo-0.300", "sampler": arm, "ratio_to_reuse": ratio,
+                       "ratio_to_reuse_ci95_low": ratio / 2, "ratio_to_reuse_ci95_high": high}]).to_csv(paths[-1])
+    models = tmp_path / "models"
+    shutil.copytree("data/models/cr3bp", models)
+    (models / "selector.joblib").unlink(missing_ok=True)
+    chosen, why = resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=tuple(paths), models_dir=str(models)), cfg)
+    assert chosen.sampler == "nearest_alpha" and "selector" not in why  # no selector shipped: not available
+    (models / "selector.joblib").write_bytes(b"")
+    chosen, why = resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=tuple(paths), models_dir=str(models)), cfg)
+    assert chosen.sampler == "selector" and "beat reuse significantly" in why
+    assert "in selection/loo-0.300" in why and "in arms/loo-0.300" in why  # each measurement's table named
+    assert DesignRequest(alpha=0.5, n=1).frontier == DEFAULT_FRONTIERS
+    import amorgs.design.search as search
+
+    absent = str(tmp_path / "not-yet" / "frontier.csv")
+    monkeypatch.setattr(search, "DEFAULT_FRONTIERS", (paths[0], absent))  # a default not yet made is skipped
+    chosen, _ = resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=(paths[0], absent), models_dir=str(models)), cfg)
+    assert chosen.sampler == "nearest_alpha"
+    monkeypatch.undo()
+    with pytest.raises(InputError, match="--frontier .*not-yet/frontier.csv: no such file"):  # named: refused
+        resolve_sampler(DesignRequest(alpha=gap_alpha, n=1, frontier=(paths[0], absent)), cfg)

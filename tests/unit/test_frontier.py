@@ -195,8 +195,14 @@ def test_frontier_table_on_real_solves(runs):
                 assert row["n"] == 30 and row["model_seeds"] == 2 and row["k_found"] == k
                 assert row["aRT"] == pytest.approx(g[unit].sum() / k, rel=1e-12)
                 assert row["aRT_ci95_low"] <= row["aRT"] <= row["aRT_ci95_high"]
+                hq = high_quality(g, BETA).to_numpy()  # the oracle solves only the starts that succeed
+                assert row["aRT_oracle"] == pytest.approx(g[unit].to_numpy()[hq].sum() / k, rel=1e-12)
+                assert row["aRT_oracle"] <= row["aRT"]
+                reuse_art = t.loc[(r.run, "nearest_alpha", "high_quality", unit), "aRT"]
+                assert row["oracle_to_reuse"] == pytest.approx(row["aRT_oracle"] / reuse_art, rel=1e-12)
                 distinct = t.loc[(r.run, arm, "distinct", unit)]
                 assert 0 < distinct["k_found"] <= k and distinct["aRT"] >= row["aRT"]
+                assert distinct["aRT_oracle"] <= distinct["aRT"]
         for target in ("high_quality", "distinct"):
             for unit in ("iterations", "cpu_s"):
                 learned, reuse = t.loc[(r.run, "amorgs", target, unit)], t.loc[(r.run, "nearest_alpha", target, unit)]
@@ -242,7 +248,12 @@ def test_the_frontier_figure(runs):
     assert "relative gap" in right.get_xlabel() and "(N)" in left.get_xlabel()
     assert any(list(line.get_ydata()) == [1.0, 1.0] for line in left.lines)  # the line at 1
     learned = table[(table["sampler"] == "amorgs") & (table["unit"] == "iterations") & (table["target"] == "high_quality")]
-    points = [line for line in left.lines if len(line.get_xdata()) == 1]  # one arm: not dodged
+    points = [line for line in left.lines if len(line.get_xdata()) == 1 and line.get_marker() != "_"]  # not dodged
+    oracle = [line for line in left.lines if line.get_marker() == "_" and len(line.get_xdata())]  # reuse's oracle bound at each test α
+    bound = table[(table["sampler"] == "nearest_alpha") & (table["unit"] == "iterations")
+                  & (table["target"] == "high_quality")]
+    assert sorted(float(o.get_ydata()[0]) for o in oracle) == pytest.approx(sorted(bound["oracle_to_reuse"]))
+    assert all(0 < float(o.get_ydata()[0]) <= 1 for o in oracle)
     assert sorted(float(p.get_xdata()[0]) for p in points) == pytest.approx(sorted(learned["gap"]))
     assert left.get_xlim()[0] == 0
     assert {t.get_text() for t in left.texts} == {"0.5", "0.3"}

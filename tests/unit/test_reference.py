@@ -131,6 +131,27 @@ def test_the_committed_frontier_is_recomputed_from_its_folds_starts_and_the_ship
     pd.testing.assert_frame_equal(table, committed, check_dtype=False, rtol=1e-12)
 
 
+def selector_folds() -> list[Path]:
+    """The committed folds of the transfer selector (issue 38): the pilot, then every fold, by name."""
+    folds = sorted(p for p in (ROOT / "reference" / "selector-folds").iterdir() if (p / "starts.parquet").is_file())
+    return [ROOT / "reference" / "selector-pilot", *folds]
+
+
+def test_the_committed_selector_frontier_is_recomputed_from_its_folds_starts():
+    """reference/selector-frontier/frontier.csv (what `amorgs design --sampler auto` reads beside the five arms'
+    frontier) is exactly the aggregation of the committed selector folds' starts, with the oracle bound."""
+    import pandas as pd
+
+    from amorgs.ablation.frontier import frontier_table
+    from amorgs.frontier import read_run
+
+    table = frontier_table([read_run(p) for p in selector_folds()])
+    committed = pd.read_csv(ROOT / "reference" / "selector-frontier" / "frontier.csv")
+    pd.testing.assert_frame_equal(table, committed, check_dtype=False, rtol=1e-12)
+    reuse = table[(table["sampler"] == "nearest_alpha") & (table["unit"] == "iterations")]
+    assert ((reuse["oracle_to_reuse"] > 0) & (reuse["oracle_to_reuse"] <= 1)).all()
+
+
 def _run_with_arms(tmp_path, base: Path, arms_from: dict[str, str], tamper: bool = False) -> Path:
     """A run directory of ``base``'s design with ``nearest_alpha_perturbed`` added to its samplers, holding only the cell
     tables of the arms in ``arms_from`` (arm → the committed arm whose starts it copies), and the library

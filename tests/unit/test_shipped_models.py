@@ -46,3 +46,33 @@ def test_export_needs_every_checkpoint_and_unshipped_folders_are_trusted(tmp_pat
     with pytest.raises(InputError, match=r"vanilla_cvae\.pt: checkpoint not found"):
         export_models(src, tmp_path / "shipped", load_config(config), config)
     assert verify_models(src) is None
+
+
+def test_a_selector_ships_beside_the_checkpoints_with_its_own_record_and_survives_a_reexport(tmp_path):
+    from amorgs.models.selector import SELECTOR_FILE
+    from amorgs.models.shipped import export_selector
+
+    dest = tmp_path / "shipped"
+    default, selector_config = ROOT / "config" / "default.yaml", ROOT / "config" / "selector-model.yaml"
+    src = trained(tmp_path)
+    with pytest.raises(InputError, match="no shipped models manifest"):  # the checkpoints come first
+        export_selector(src, dest, load_config(selector_config), selector_config)
+    export_models(src, dest, load_config(default), default, ROOT / "data" / "library")
+    with pytest.raises(InputError, match=r"selector\.joblib: selector not found"):
+        export_selector(src, dest, load_config(selector_config), selector_config)
+    (src / SELECTOR_FILE).write_bytes(b"selector" * 50)
+    with pytest.raises(InputError, match="transfer.enabled is false"):  # not the config that trained it
+        export_selector(src, dest, load_config(default), default)
+    manifest = export_selector(src, dest, load_config(selector_config), selector_config, ROOT / "data" / "library")
+    record = manifest["selector"]
+    assert record["config_hash"] == load_config(selector_config).hash and record["transfer"]["enabled"]
+    assert len(record["train_alphas"]) == 14 and record["library_rows"] > 0
+    assert manifest["config_hash"] == load_config(default).hash  # the checkpoints' record is untouched
+    assert verify_models(dest, (SELECTOR_FILE,))["selector"] == record
+    export_models(src, dest, load_config(default), default, ROOT / "data" / "library")  # re-export: the selector stays
+    assert verify_models(dest, (*CHECKPOINT_FILES, SELECTOR_FILE))["selector"] == record
+    (dest / SELECTOR_FILE).write_bytes(b"edited")
+    with pytest.raises(InputError, match=r"selector\.joblib: SHA-256 .* differs"):
+        verify_models(dest, (SELECTOR_FILE,))
+    export_models(src, dest, load_config(default), default, ROOT / "data" / "library")  # an edited one is dropped
+    assert "selector" not in verify_models(dest)

@@ -114,6 +114,10 @@ def frontier_table(
     its bootstrap 95 % interval ``aRT_ci95_low/high`` (:func:`~amorgs.ablation.statistics.art_interval`),
     ``speedup`` = aRT(baseline) ÷ aRT(arm) with its interval, and — for the ``learned`` arms —
     ``ratio_to_reuse`` = aRT(arm) ÷ aRT(reuse) with its interval (< 1: the learned arm wins; NaN elsewhere).
+    ``aRT_oracle`` is the arm's oracle bound, its aRT had it solved only the starts that found something, and
+    ``oracle_to_reuse`` = aRT_oracle ÷ aRT(reuse): on the reuse row, the limit of any selector over reuse's
+    retrieved candidates (issue 38 §4); a learned arm's ``ratio_to_reuse`` ÷ the reuse row's
+    ``oracle_to_reuse`` is its distance to that limit.
     The reuse arm, the baseline and every arm in ``learned`` (default: every other arm of the first run) must
     be in each run's cells.  Bootstraps are seeded by ``seed``: one table from one set of runs.
     """
@@ -148,6 +152,7 @@ def _alpha_rows(g: pd.DataFrame, where: dict, r: FrontierRun, learned, reuse: st
         versus = {arm: expected_running_time(g, r.beta_kg, baseline=baseline, reuse=arm, **kw)
                   .set_index(["sampler", "unit"]).loc[reuse] for arm in learned}
         intervals = art_interval(g, r.beta_kg, n_boot=n_boot, seed=seed, target=target, eta=r.eta)
+        reuse_art = ert[ert["sampler"] == reuse].set_index("unit")["aRT"]
         for e in ert.itertuples(index=False):
             row = {**where, "sampler": e.sampler, "target": target, "unit": e.unit, "n": e.n,
                    "model_seeds": int(g.loc[g["sampler"] == e.sampler, "model_seed"].nunique())
@@ -156,7 +161,8 @@ def _alpha_rows(g: pd.DataFrame, where: dict, r: FrontierRun, learned, reuse: st
                    "aRT_ci95_low": intervals[(e.sampler, e.unit)][0],
                    "aRT_ci95_high": intervals[(e.sampler, e.unit)][1],
                    "speedup": e.speedup, "speedup_ci95_low": e.speedup_ci95_low,
-                   "speedup_ci95_high": e.speedup_ci95_high,
+                   "speedup_ci95_high": e.speedup_ci95_high, "aRT_oracle": e.aRT_oracle,
+                   "oracle_to_reuse": _ratio(e.aRT_oracle, reuse_art[e.unit]),
                    "ratio_to_reuse": math.nan, "ratio_to_reuse_ci95_low": math.nan,
                    "ratio_to_reuse_ci95_high": math.nan}
             if e.sampler in versus:
@@ -165,6 +171,13 @@ def _alpha_rows(g: pd.DataFrame, where: dict, r: FrontierRun, learned, reuse: st
                            ratio_to_reuse_ci95_high=v["versus_reuse_ci95_high"])
             rows.append(row)
     return rows
+
+
+def _ratio(a: float, b: float) -> float:
+    """a ÷ b for aRTs (∞ allowed): NaN when both are ∞ or b is 0."""
+    if math.isinf(a) and math.isinf(b) or b == 0:
+        return math.nan
+    return a / b
 
 
 def frontier_metrics(table: pd.DataFrame) -> dict[str, float]:

@@ -257,17 +257,35 @@ def _new_optima(hq: np.ndarray, features: np.ndarray, eta: float):
     return lambda index: first_come_diverse(close, position[index])
 
 
+def _found_flags(hq: np.ndarray, features: np.ndarray | None = None, eta: float = math.nan) -> np.ndarray:
+    """Per start of one arm, in its draw order: did it find something — a high-quality solution, or with
+    ``features`` a new η-distinct high-quality optimum (:func:`_new_optima`)?"""
+    if features is None:
+        return np.asarray(hq, bool)
+    return _new_optima(hq, features, eta)(np.arange(len(hq)))
+
+
+def _oracle_art(cost: np.ndarray, flags: np.ndarray) -> float:
+    """The oracle bound of an arm's aRT: its cost had it solved only the starts that found something (a perfect
+    selector over the same starts, knowing the outcomes in advance) ÷ what they found; ∞ when nothing was."""
+    k = int(flags.sum())
+    return float(cost[flags].sum()) / k if k else math.inf
+
+
 def _found_counter(hq: np.ndarray, features: np.ndarray | None = None, eta: float = math.nan):
     """``count(index)``: what the starts ``index`` (positions in one arm; 1-D → a number, 2-D → one per row)
     found — high-quality solutions, or with ``features`` (the diversity coordinates of every start) the new
-    η-distinct high-quality optima (:func:`_new_optima`)."""
-    if features is None:
-        return lambda index: hq[index].sum(-1)
-    # Each start's flag is fixed by the arm's own draw order, and a resample counts the flags of the starts it
-    # holds.  Recomputing the flags per resample would count a start drawn twice once — a duplicate no real
-    # rerun produces at the bootstrap's rate (≈ 37 % of a resample's draws repeat one) — and bias every
-    # resampled aRT per distinct optimum upward, past its own point estimate.
-    flags = _new_optima(hq, features, eta)(np.arange(len(hq)))
+    η-distinct high-quality optima (:func:`_found_flags`)."""
+    return _counter(_found_flags(hq, features, eta))
+
+
+def _counter(flags: np.ndarray):
+    """``count(index)`` over per-start ``flags`` (:func:`_found_counter`).
+
+    Each start's flag is fixed by the arm's own draw order, and a resample counts the flags of the starts it
+    holds.  Recomputing the flags per resample would count a start drawn twice once — a duplicate no real
+    rerun produces at the bootstrap's rate (≈ 37 % of a resample's draws repeat one) — and bias every
+    resampled aRT per distinct optimum upward, past its own point estimate."""
     return lambda index: flags[index].sum(-1)
 
 
@@ -321,7 +339,8 @@ def expected_running_time(
     (model_seed, start), a high-quality solution counts when it is farther than η from every one counted
     before — a repeat of a solved start, or a solution in a basin already found, costs its iterations and
     finds nothing new.  A bootstrap resample takes its starts in the order drawn.  That table adds
-    ``k_distinct`` and ``eta``."""
+    ``k_distinct`` and ``eta``.  ``aRT_oracle`` is the arm's oracle bound (issue 38 §4): its aRT had it solved
+    only the starts that found something — what a perfect selector over the same starts would spend."""
     from amorgs.analysis.diversity import DiversityParams, diversity_features
 
     if target not in ERT_TARGETS:
@@ -336,8 +355,9 @@ def expected_running_time(
         groups = ga.groupby("sampler", sort=False).indices
         hq_all = high_quality(ga, beta_kg).to_numpy()
         feats = diversity_features(ga, params) if target == "distinct" else None
-        counters = {s: _found_counter(hq_all[idx], None if feats is None else feats[idx], params.eta)
-                    for s, idx in groups.items()}
+        flags = {s: _found_flags(hq_all[idx], None if feats is None else feats[idx], params.eta)
+                 for s, idx in groups.items()}
+        counters = {s: _counter(f) for s, f in flags.items()}
         for unit in COST_UNITS:
             cost_all = solve_costs(ga, unit)
             for sampler, idx in sorted(groups.items()):
@@ -345,7 +365,8 @@ def expected_running_time(
                        "k_high_quality": int(hq_all[idx].sum())}
                 if target == "distinct":
                     row.update(k_distinct=int(counters[sampler](np.arange(len(idx)))), eta=params.eta)
-                row.update(cost_total=float(cost_all[idx].sum()), aRT=_art(cost_all[idx], counters[sampler]))
+                row.update(cost_total=float(cost_all[idx].sum()), aRT=_art(cost_all[idx], counters[sampler]),
+                           aRT_oracle=_oracle_art(cost_all[idx], flags[sampler]))
                 for column, name, stream in (("speedup", baseline, rng), ("versus_reuse", reuse, rng_reuse)):
                     base = groups.get(name)
                     values = ((math.nan,) * 3 if base is None else

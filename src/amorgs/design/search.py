@@ -57,8 +57,9 @@ PROBLEM = "cr3bp"
 #: ``--sampler auto``: the arm the frontier recommends (:func:`resolve_sampler`).
 AUTO_SAMPLER = "auto"
 DEFAULT_SAMPLER = AUTO_SAMPLER
-#: The committed frontier table (``amorgs frontier``) that ``auto`` follows.
-DEFAULT_FRONTIER = "reference/frontier/frontier.csv"
+#: The committed frontier tables (``amorgs frontier``) that ``auto`` follows: the frontier of the five arms
+#: (issue 21) and the transfer selector's folds (issue 38).
+DEFAULT_FRONTIERS = ("reference/frontier/frontier.csv", "reference/selector-frontier/frontier.csv")
 DEFAULT_LIBRARY_DIR = "data/library"
 DEFAULT_MODELS_DIR = "data/models/cr3bp"
 DEFAULT_CONFIG = "config/default.yaml"
@@ -93,7 +94,7 @@ class DesignRequest:
     library_dir: str = DEFAULT_LIBRARY_DIR
     models_dir: str = DEFAULT_MODELS_DIR
     config: str = DEFAULT_CONFIG
-    frontier: str = DEFAULT_FRONTIER
+    frontier: tuple[str, ...] | str = DEFAULT_FRONTIERS  # one table or several, read together
 
     def check(self) -> None:
         """One :class:`ConfigError` naming the option for every out-of-range value (β against the problem's
@@ -247,11 +248,14 @@ def hq_cache_key(manifest: Path, train_alphas, min_final_mass_kg: float) -> str:
 
 
 def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
-    """``request`` with ``--sampler auto`` replaced by the arm the committed frontier (``request.frontier``)
-    recommends at ``request.alpha`` — :func:`~amorgs.ablation.frontier.choose_sampler` with the config's
-    training α (the library α the samplers draw from) and the arms whose checkpoints ``request.models_dir``
-    holds — and one line saying which and why; any other sampler is kept.  Without the committed frontier file:
-    reuse; a ``--frontier`` file named but missing is refused (``InputError``)."""
+    """``request`` with ``--sampler auto`` replaced by the arm the committed frontier tables
+    (``request.frontier``, read together) recommend at ``request.alpha`` —
+    :func:`~amorgs.ablation.frontier.choose_sampler` with the config's training α (the library α the samplers
+    draw from) and the arms whose checkpoints (and, for a transfer arm, selector) ``request.models_dir`` holds —
+    and one line saying which and why, naming the evidence; any other sampler is kept.  A default table that is
+    missing is skipped (none at all: reuse); a ``--frontier`` file named but missing is refused
+    (``InputError``).  With several tables each row's run is prefixed by its table's folder, so the reason names
+    where a measurement lies."""
     from dataclasses import replace
 
     if request.sampler != AUTO_SAMPLER:
@@ -261,20 +265,32 @@ def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
     from amorgs.models.names import CHECKPOINTS
     from amorgs.models.selector import SELECTOR_FILE
 
-    path = Path(request.frontier)
-    if not path.is_file() and Path(request.frontier) != Path(DEFAULT_FRONTIER):
-        raise InputError(f"--frontier {request.frontier}: no such file (a frontier table of `amorgs frontier`)")
-    if not path.is_file():
+    named = (request.frontier,) if isinstance(request.frontier, str) else tuple(request.frontier)
+    defaults = {Path(p) for p in DEFAULT_FRONTIERS}
+    for name in named:
+        if not Path(name).is_file() and Path(name) not in defaults:
+            raise InputError(f"--frontier {name}: no such file (a frontier table of `amorgs frontier`)")
+    paths = [Path(p) for p in named if Path(p).is_file()]
+    if not paths:
         return (replace(request, sampler=REUSE_ARM),
-                f"sampler {REUSE_ARM} (--sampler auto): no frontier table at {path}, reuse by default")
+                f"sampler {REUSE_ARM} (--sampler auto): no frontier table at {', '.join(named)}, reuse by default")
+    models = Path(request.models_dir)
+    available = tuple(a.name for a in ARMS if all((models / CHECKPOINTS[m]).is_file() for m in a.models)
+                      and (not a.transfer or (models / SELECTOR_FILE).is_file()))
+    tables = []
+    for path in paths:
+        try:
+            table = pd.read_csv(path)
+            if len(paths) > 1:
+                table["run"] = path.parent.name + "/" + table["run"].astype(str)
+        except (KeyError, ValueError, OSError, pd.errors.ParserError) as exc:
+            raise InputError(f"{path}: not a frontier table of `amorgs frontier` ({exc})") from None
+        tables.append(table)
     try:
-        table = pd.read_csv(path)
-        models = Path(request.models_dir)
-        available = tuple(a.name for a in ARMS if all((models / CHECKPOINTS[m]).is_file() for m in a.models)
-                          and (not a.transfer or (models / SELECTOR_FILE).is_file()))
-        choice = choose_sampler(table, request.alpha, cfg.problems.cr3bp.alphas.train_values(), available=available)
-    except (KeyError, ValueError, OSError, pd.errors.ParserError) as exc:
-        raise InputError(f"{path}: not a frontier table of `amorgs frontier` ({exc})") from None
+        choice = choose_sampler(pd.concat(tables, ignore_index=True), request.alpha,
+                                cfg.problems.cr3bp.alphas.train_values(), available=available)
+    except (KeyError, ValueError) as exc:
+        raise InputError(f"{', '.join(map(str, paths))}: not a frontier table of `amorgs frontier` ({exc})") from None
     return replace(request, sampler=choice.sampler), f"sampler {choice.sampler} (--sampler auto): {choice.reason}"
 
 
@@ -315,12 +331,15 @@ def make_sampler(request: DesignRequest, cfg, problem):
     section = cfg.problems.cr3bp
     train = tuple(section.alphas.train_values())
     info: dict = {"sampler": request.sampler}
-    models_dir = Path(request.models_dir) if arm.transfer else None  # the selector lies beside the checkpoints
-    if arm.models:
-        models_dir = Path(request.models_dir)
+    from amorgs.models.selector import SELECTOR_FILE
+
+    # the selector lies beside the checkpoints; both are checked against a shipped folder's manifest
+    needed = tuple(CHECKPOINTS[m] for m in arm.models) + ((SELECTOR_FILE,) if arm.transfer else ())
+    models_dir = Path(request.models_dir) if needed else None
+    if needed:
         from amorgs.models.shipped import verify_models
 
-        shipped = verify_models(models_dir, tuple(CHECKPOINTS[m] for m in arm.models))
+        shipped = verify_models(models_dir, needed)
         if shipped is not None:
             info["models_git_commit"] = shipped["git_commit"]
             note = stale_models_note(shipped, request.library_dir, models_dir)

@@ -9,7 +9,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 
-from amorgs.ablation.arms import arm_label
+from amorgs.ablation.arms import REUSE_ARM, arm_label
 
 _MARKERS = "osD^vP*X"
 #: x axes of the two panels: (column, label).
@@ -30,19 +30,26 @@ def _dodged(t: pd.DataFrame, column: str, arms: list[str], width: float) -> pd.S
     return xs
 
 
-def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "high_quality") -> Figure:
+def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "high_quality",
+                 reuse: str = REUSE_ARM) -> Figure:
     """aRT(learned) ÷ aRT(reuse) with its bootstrap 95 % interval (log y; below the line at 1 learning wins) against
     the absolute gap (left, N) and the relative gap (right), one point per (run, test α, learned arm): colour =
     design, marker = learned arm (the points at one gap side by side, ascending test α), ∞ drawn at the top edge as
     an open marker, the test α written once above its points, in its design's colour. ``unit``: cost in
-    ``iterations`` (IPOPT) or ``cpu_s``; ``target``: per ``high_quality`` solution or per new ``distinct`` optimum."""
+    ``iterations`` (IPOPT) or ``cpu_s``; ``target``: per ``high_quality`` solution or per new ``distinct`` optimum.
+    A grey bar at each test α marks the oracle bound of selection over reuse's candidates (the ``reuse`` row's
+    ``oracle_to_reuse``, where the table has it): no selector over those candidates can go below it."""
     t = table[(table["unit"] == unit) & (table["target"] == target) & table["ratio_to_reuse"].notna()]
+    oracle = table[(table["unit"] == unit) & (table["target"] == target) & (table["sampler"] == reuse)]
+    oracle = oracle[np.isfinite(oracle["oracle_to_reuse"])] if "oracle_to_reuse" in oracle else oracle.iloc[:0]
     designs = sorted(t["design"].unique())
     arms = sorted(t["sampler"].unique())
     values = t[["ratio_to_reuse", "ratio_to_reuse_ci95_low", "ratio_to_reuse_ci95_high"]].to_numpy(dtype=float)
     shown = values[np.isfinite(values) & (values > 0)]
     lo, hi = (shown.min() / 2, shown.max() * 2) if shown.size else (0.1, 10.0)
     lo, hi = min(lo, 0.5), max(hi, 2.0)
+    if len(oracle):
+        lo = min(lo, float(oracle["oracle_to_reuse"].min()) / 1.5)
     fig = Figure(figsize=(11, 4.8), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
     plain = FuncFormatter(lambda v, _: f"{v:g}")
@@ -69,6 +76,9 @@ def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "h
         for (_, alpha), (x_seen, top, i) in tops.items():  # the test α once, above its points' whiskers
             ax.annotate(f"{alpha:g}", (float(np.mean(x_seen)), min(top, hi)), textcoords="offset points",
                         xytext=(0, 2), fontsize=7, ha="center", va="bottom", color=f"C{i}")
+        for r in oracle.itertuples(index=False):
+            if r.oracle_to_reuse > 0:
+                ax.plot([getattr(r, column)], [r.oracle_to_reuse], marker="_", ms=14, mew=2, color="grey")
         ax.axhline(1.0, color="grey", ls="--", lw=0.8)
         ax.set_yscale("log")
         ax.set_ylim(lo, hi)
@@ -83,6 +93,9 @@ def fig_frontier(table: pd.DataFrame, unit: str = "iterations", target: str = "h
     handles = [axes[0].plot([], [], color=f"C{i}", lw=2, label=d)[0] for i, d in enumerate(designs)]
     handles += [axes[0].plot([], [], color="k", marker=_MARKERS[j % len(_MARKERS)], ls="none",
                              label=arm_label(a))[0] for j, a in enumerate(arms)]
+    if len(oracle):
+        handles.append(axes[0].plot([], [], color="grey", marker="_", ms=14, mew=2, ls="none",
+                                    label="oracle bound of selecting reuse's candidates")[0])
     if handles:
         fig.legend(handles=handles, fontsize=7, loc="outside lower center", ncol=len(handles))  # off the points
     n = int(t["n"].min()) if len(t) else 0

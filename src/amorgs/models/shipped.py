@@ -4,6 +4,8 @@ the learned samplers on a fresh clone without a workflow run.
 Layout::
 
     data/models/cr3bp/{cvae_gmm,vanilla_cvae,lstm}.pt     the checkpoints of one workflow run's train step
+    data/models/cr3bp/selector.joblib                     the transfer selector of one run's train_selector
+                                                          (issue 38 §5; ``export_selector``), optional
     data/models/cr3bp/provenance.json                     manifest: per file SHA-256 and bytes; the config
                                                           (file, hash), git commit, export time, and the
                                                           library manifest's SHA-256 + rows they were trained on,
@@ -45,7 +47,6 @@ def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: st
             shutil.copyfile(src / name, tmp)
         files.append({"file": name, "sha256": sha256_file(dst / name), "bytes": (dst / name).stat().st_size})
     library = read_manifest(library_dir, problem)
-    library_path = Path(library_dir) / problem / LIBRARY_MANIFEST
     manifest = {
         "problem": problem,
         "files": files,
@@ -53,15 +54,77 @@ def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: st
         "config_hash": cfg.hash,
         "cr3bp_models": cfg.cr3bp_models.model_dump(mode="json"),
         "train_alphas": list(cfg.problems.cr3bp.alphas.train_values()),
-        "library_manifest_sha256": sha256_file(library_path) if library is not None else None,
-        "library_rows": library["totals"]["rows"] if library is not None else 0,
+        **_library_record(library_dir, problem),
         # the code that solved the training rows: each generation's options hashes and NLP fingerprints (issue 37)
         "library_identity": [{k: g.get(k) for k in ("generation", "options_hashes", "nlp_fingerprints")}
                              for g in (library or {}).get("generations", [])],
         "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "git_commit": git_commit(),
     }
+    kept = _shipped_selector(dst)  # a selector shipped earlier stays, with its own record
+    if kept is not None:
+        manifest["files"].append(kept[0])
+        manifest["selector"] = kept[1]
     write_json(manifest, dst / MANIFEST)
+    return manifest
+
+
+def _shipped_selector(dest: Path) -> tuple[dict, dict] | None:
+    """(file entry, ``selector`` record) of the selector shipped in ``dest`` when its manifest lists it and the
+    file still matches; otherwise None."""
+    from amorgs.models.selector import SELECTOR_FILE
+
+    path = dest / MANIFEST
+    if not path.is_file():
+        return None
+    old = json.loads(path.read_text())
+    entry = next((f for f in old.get("files", []) if f["file"] == SELECTOR_FILE), None)
+    if entry is None or "selector" not in old or not (dest / SELECTOR_FILE).is_file():
+        return None
+    return (entry, old["selector"]) if sha256_file(dest / SELECTOR_FILE) == entry["sha256"] else None
+
+
+def _library_record(library_dir: str | Path, problem: str) -> dict:
+    """The library a model was trained on: its manifest's SHA-256 and its rows."""
+    library = read_manifest(library_dir, problem)
+    library_path = Path(library_dir) / problem / LIBRARY_MANIFEST
+    return {"library_manifest_sha256": sha256_file(library_path) if library is not None else None,
+            "library_rows": library["totals"]["rows"] if library is not None else 0}
+
+
+def export_selector(models_dir: str | Path, dest: str | Path, cfg, config_file: str | Path,
+                    library_dir: str | Path = "data/library", problem: str = "cr3bp") -> dict:
+    """Copy the transfer selector of ``models_dir`` (a run's ``results/cr3bp/models/selector.joblib``, trained by
+    its ``train_selector`` on the transfer data of ``cfg``'s training α) beside the shipped checkpoints in
+    ``dest`` and record it in their manifest (``files`` and a ``selector`` record: the run's config, its
+    ``transfer`` section, training α, library, commit); returns the manifest.  ``dest`` must already hold a
+    manifest of :func:`export_models` (the selector ranks the library's solutions for the same design)."""
+    from amorgs.models.selector import SELECTOR_FILE
+
+    src, dst = Path(models_dir), Path(dest)
+    path = dst / MANIFEST
+    if not path.is_file():
+        raise InputError(f"{path}: no shipped models manifest (export the checkpoints first: amorgs models-export)")
+    if not (src / SELECTOR_FILE).is_file():
+        raise InputError(f"{src / SELECTOR_FILE}: selector not found (run the workflow's train_selector: "
+                         "transfer.enabled, e.g. config/selector-model.yaml)")
+    if not cfg.transfer.enabled:
+        raise InputError(f"{config_file}: transfer.enabled is false — not the config of a run that trained a selector")
+    manifest = json.loads(path.read_text())
+    with atomic_path(dst / SELECTOR_FILE) as tmp:
+        shutil.copyfile(src / SELECTOR_FILE, tmp)
+    entry = {"file": SELECTOR_FILE, "sha256": sha256_file(dst / SELECTOR_FILE),
+             "bytes": (dst / SELECTOR_FILE).stat().st_size}
+    manifest["files"] = [f for f in manifest["files"] if f["file"] != SELECTOR_FILE] + [entry]
+    manifest["selector"] = {
+        "config_file": str(config_file), "config_hash": cfg.hash,
+        "transfer": cfg.transfer.model_dump(mode="json"),
+        "train_alphas": list(cfg.problems.cr3bp.alphas.train_values()),
+        **_library_record(library_dir, problem),
+        "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "git_commit": git_commit(),
+    }
+    write_json(manifest, path)
     return manifest
 
 
