@@ -6,6 +6,8 @@ can be browsed and compared.  Layout of the store (``results/mlflow/``)::
     mlflow.db          SQLite tracking store, URI ``sqlite:///<absolute path>/mlflow.db?timeout=60``
     artifacts/         artifact root of the experiment (figures, configs)
     invocation.json    the current workflow invocation: experiment, parent run id, config hash, git commit
+    pending/           the record of each job that finished while its tracking failed (disk full, a lost
+                       database): params, metrics and artifact paths, written into a run by the next invocation
     .lock              serialises every write (see below)
 
 The tracking URI is config ``mlflow.tracking_uri`` (``null``: the SQLite store above), overridden by the
@@ -29,7 +31,12 @@ a write while another process writes, which MLflow's own busy timeout cannot pre
 store therefore holds an exclusive ``flock`` on ``.lock``: writes take milliseconds, jobs minutes.
 
 Failure policy: a job never fails because of tracking.  A missing store or an MLflow error prints one
-warning to the job's log and the job goes on untracked.
+warning to the job's log and the job goes on untracked — but a job of a tracked invocation keeps what it logged
+(params, metrics, artifact paths) and, when it finishes while its tracking failed, leaves that record under
+``pending/``; the next invocation writes each record into a FINISHED run under its own parent (tag
+``recorded_late``) and removes it, so ``amorgs check-outputs`` sees the job without a rerun of its work.  Where
+not even that record can be written (the disk is full), the job fails, so Snakemake removes its outputs and the
+next invocation reruns it.
 
 MLflow is imported where it is used, not with this module (≈ 2–3 s): an untracked job never loads it, and
 :func:`standalone_run` can open its run in the background while the caller works (``amorgs design``).
@@ -66,6 +73,8 @@ os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
 STORE_DIR = Path("results/mlflow")
 DB_NAME = "mlflow.db"
 INVOCATION_FILE = "invocation.json"
+#: Records of jobs that finished while their tracking failed (:meth:`JobRun.close`, :func:`_record_pending`).
+PENDING_DIR = "pending"
 
 #: Distributions whose versions tag every run.
 VERSIONED_PACKAGES = ("amorgs", "numpy", "scipy", "pandas", "pyarrow", "torch", "casadi", "snakemake", "mlflow")
@@ -254,6 +263,7 @@ def _open_parent_run(
         **package_versions(),
     }
     run_id = client.create_run(exp_id, run_name=f"workflow {now} config {config_hash}", tags=tags).info.run_id
+    _record_pending(store, client, exp_id, run_id)
     params = _params(_flatten(config))
     for i in range(0, len(params), 100):
         client.log_batch(run_id, params=params[i : i + 100])
@@ -268,6 +278,38 @@ def _open_parent_run(
     }
     write_json(invocation, store / INVOCATION_FILE)
     return run_id
+
+
+def _record_pending(store: Path, client, experiment_id: str, parent_run_id: str) -> None:
+    """Write each record left under ``pending/`` (a job that finished while its tracking failed) into a FINISHED
+    child run of ``parent_run_id`` — its params, metrics and the artifacts that still exist, tagged
+    ``recorded_late`` with when the job finished — and remove the record.  Called with the store locked."""
+    from mlflow.entities import Metric
+
+    folder = store / PENDING_DIR
+    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        try:
+            j = read_json(path)
+            wildcards = j["wildcards"]
+            tags = {"mlflow.parentRunId": parent_run_id, "kind": "job", "rule": j["rule"],
+                    "wildcards": json.dumps(wildcards, sort_keys=True),
+                    **{f"wildcard.{k}": str(v) for k, v in wildcards.items()}, "recorded_late": j["finished"]}
+            name = " ".join([j["rule"], *(f"{k}={v}" for k, v in wildcards.items())])
+            run_id = client.create_run(experiment_id, run_name=name, tags=tags).info.run_id
+            params = _params(j["params"])
+            for i in range(0, len(params), 100):
+                client.log_batch(run_id, params=params[i : i + 100])
+            ts = int(time.time() * 1000)
+            metrics = [Metric(k, v, ts, step) for k, v, step in j["metrics"]]
+            for i in range(0, len(metrics), _MAX_BATCH):
+                client.log_batch(run_id, metrics=metrics[i : i + _MAX_BATCH])
+            for file, artifact_path in j["artifacts"]:
+                if Path(file).is_file():
+                    client.log_artifact(run_id, file, artifact_path)
+            client.set_terminated(run_id, "FINISHED")
+            path.unlink()
+        except Exception as exc:  # noqa: BLE001 — the record stays for the next invocation
+            _warn(f"recording {path.name}", exc)
 
 
 def stop_tracking(store_dir: str | Path = STORE_DIR) -> None:
@@ -306,6 +348,15 @@ class JobRun:
         self._model_id: str | None = None
         self._dataset: tuple[str, str] | None = None  # (name, digest) of the training data, linked to metrics
         self._opening: threading.Thread | None = None  # the run being opened in the background (standalone_run)
+        #: What a job of a tracked invocation logged (:meth:`expect`), kept to be written later if tracking fails.
+        self._journal: dict | None = None
+        self._lost = False  # tracking was expected and failed
+
+    def expect(self, rule: str, wildcards: dict[str, str], lost: bool = False) -> JobRun:
+        """Keep a journal of what this job logs; ``lost``: its run could not even be opened."""
+        self._journal = {"rule": rule, "wildcards": wildcards, "params": {}, "metrics": [], "artifacts": []}
+        self._lost = lost
+        return self
 
     def _opened(self) -> None:
         """Wait until a run opened in the background (:func:`standalone_run`) exists, or failed to."""
@@ -327,10 +378,13 @@ class JobRun:
         except Exception as exc:  # noqa: BLE001 — tracking never fails a job
             _warn(method, exc)
             self._client = None
+            self._lost = True
 
     def log_params(self, params: dict) -> None:
         """Log parameters (nested dicts flattened with dots, lists as JSON)."""
         self._opened()
+        if self._journal is not None:
+            self._journal["params"].update(_flatten(params))
         self._write_params(params)
 
     def _write_params(self, params: dict) -> None:
@@ -346,6 +400,8 @@ class JobRun:
         Between :meth:`start_model` and :meth:`finish_model` they are linked to that logged model (and to the
         last ``training`` dataset logged).
         """
+        if self._journal is not None:
+            self._journal["metrics"] += [[k, float(v), step] for k, v in metrics.items() if v is not None]
         if self._client is None and self._opening is None:  # untracked: nothing to write, ever
             return
         from mlflow.entities import Metric
@@ -368,6 +424,8 @@ class JobRun:
 
     def log_artifact(self, path: str | Path, artifact_path: str | None = None) -> None:
         """Copy a file (a figure, a report) into the run's artifacts."""
+        if self._journal is not None:
+            self._journal["artifacts"].append([str(Path(path).resolve()), artifact_path])
         self._call("log_artifact", str(path), artifact_path)
 
     def log_dataset(self, df, path: str | Path, context: str) -> None:
@@ -447,14 +505,33 @@ class JobRun:
                 _warn("finalize_logged_model", exc)
             self._model_id = None
         self._call("set_terminated", status)
+        if self._lost and self._journal is not None and status == "FINISHED":
+            self._leave_pending()
+
+    def _leave_pending(self) -> None:
+        """Write this job's journal under ``pending/`` for the next invocation (:func:`_record_pending`)."""
+        j = self._journal
+        key = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S%f")
+        name = f"{j['rule']}-{'-'.join(f'{k}={v}' for k, v in sorted(j['wildcards'].items()))}-{key}.json"
+        try:
+            write_json({**j, "finished": key}, self._store / PENDING_DIR / name.replace("/", "_"))
+            print(f"amorgs.tracking: {j['rule']} finished untracked; its record waits in "
+                  f"{self._store / PENDING_DIR} for the next invocation", file=sys.stderr)
+        except Exception as exc:  # noqa: BLE001 — without a record the job would stay untracked for good
+            raise SystemExit(f"amorgs.tracking: {j['rule']} finished, but neither MLflow nor {self._store / PENDING_DIR} "
+                             f"could record it ({type(exc).__name__}: {exc}); the job fails so that the next "
+                             "invocation reruns it") from None
 
 
 def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
     """A child run under the current invocation, or an untracked :class:`JobRun`."""
     inv = read_json(store / INVOCATION_FILE) if (store / INVOCATION_FILE).exists() else None
-    if inv is None or (inv["tracking_uri"] == tracking_uri(store) and not (store / DB_NAME).exists()):
+    if inv is None:
         print(f"amorgs.tracking: no MLflow invocation under {store}; {rule} runs untracked", file=sys.stderr)
         return JobRun(store)
+    if inv["tracking_uri"] == tracking_uri(store) and not (store / DB_NAME).exists():
+        print(f"amorgs.tracking: the MLflow store under {store} is gone; {rule} runs untracked", file=sys.stderr)
+        return JobRun(store).expect(rule, wildcards, lost=True)
     try:
         client = _client(inv["tracking_uri"])
         tags = {
@@ -472,10 +549,10 @@ def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
         name = " ".join([rule, *(f"{k}={v}" for k, v in wildcards.items())])
         with _locked(store):
             run = client.create_run(inv["experiment_id"], run_name=name, tags=tags)
-        return JobRun(store, client, run.info.run_id, inv["experiment_id"])
+        return JobRun(store, client, run.info.run_id, inv["experiment_id"]).expect(rule, wildcards)
     except Exception as exc:  # noqa: BLE001 — tracking never fails a job
         _warn("opening the job run", exc)
-        return JobRun(store)
+        return JobRun(store).expect(rule, wildcards, lost=True)
 
 
 @contextmanager

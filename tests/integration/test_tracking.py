@@ -123,6 +123,51 @@ def test_a_killed_job_ends_its_run_killed(tmp_path, sig):
     assert [str(m.status) for m in models] == [str(models[0].status)] and "FAILED" in str(models[0].status)
 
 
+def test_a_job_whose_tracking_failed_is_recorded_by_the_next_invocation(tmp_path, monkeypatch):
+    """MLflow fails mid-job (as on a full disk): the job finishes, leaves its record under pending/, and the next
+    invocation writes it into a FINISHED run (params, every metric, the artifact) that tracked_jobs — what
+    check-outputs reads — counts; where not even the record can be written, the job fails (Snakemake then
+    removes its outputs and reruns it)."""
+    store = tmp_path / "mlflow"
+    start(store)
+    figure = tmp_path / "fig.png"
+    figure.write_bytes(b"png")
+    real = MlflowClient.log_batch
+
+    def disk_full(self, run_id, metrics=(), params=(), tags=()):
+        if metrics:
+            raise OSError(28, "No space left on device")
+        return real(self, run_id, metrics=metrics, params=params, tags=tags)
+
+    monkeypatch.setattr(MlflowClient, "log_batch", disk_full)
+    with tracking.job_run("plot", {"alpha": "0.300"}, store) as run:
+        run.log_params({"n": 3, "solver": {"tol": 1e-6}})
+        run.log_metrics({"loss": 0.5}, step=1)
+        run.log_metrics({"loss": 0.25}, step=2)  # the first flush fails: from here on the job runs untracked
+        run.flush()
+        run.log_artifact(figure, "figures")
+    tracking.finish_invocation("FINISHED", store)
+    monkeypatch.undo()
+    (pending,) = (store / tracking.PENDING_DIR).glob("*.json")
+    assert not [j for j in tracking.tracked_jobs(store)["jobs"] if j["status"] == "FINISHED"]
+    second = start(store)  # the next invocation records it
+    assert not pending.exists()
+    client = MlflowClient(tracking.tracking_uri(store))
+    (late,) = [r for r in children(client, second)]
+    assert late.info.status == "FINISHED" and late.data.tags["rule"] == "plot" and late.data.tags["recorded_late"]
+    assert late.data.params == {"n": "3", "solver.tol": "1e-06"}
+    assert [(m.step, m.value) for m in client.get_metric_history(late.info.run_id, "loss")] == [(1, 0.5), (2, 0.25)]
+    jobs = [j for j in tracking.tracked_jobs(store)["jobs"] if j["status"] == "FINISHED"]
+    assert [(j["rule"], j["wildcards"], j["artifacts"]) for j in jobs] == [("plot", {"alpha": "0.300"}, ["figures/fig.png"])]
+
+    (store / tracking.DB_NAME).unlink()  # the store is lost, and the record cannot be written either
+    (store / tracking.PENDING_DIR).rmdir()
+    (store / tracking.PENDING_DIR).write_text("a file where the folder should be")
+    with pytest.raises(SystemExit, match="neither MLflow nor .* could record it.*reruns it"):
+        with tracking.job_run("plot", {"alpha": "0.300"}, store) as run:
+            run.log_metrics({"loss": 1.0})
+
+
 def test_the_next_invocation_closes_runs_left_running_by_kill_9(tmp_path):
     store = tmp_path / "mlflow"
     parent = start(store)
