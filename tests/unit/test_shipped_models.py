@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from amorgs.config import load_config
@@ -50,7 +51,7 @@ def test_export_needs_every_checkpoint_and_unshipped_folders_are_trusted(tmp_pat
 
 def test_a_selector_ships_beside_the_checkpoints_with_its_own_record_and_survives_a_reexport(tmp_path):
     from amorgs.models.selector import SELECTOR_FILE
-    from amorgs.models.shipped import export_selector
+    from amorgs.models.shipped import SELECTOR_DATA, export_selector
 
     dest = tmp_path / "shipped"
     default, selector_config = ROOT / "config" / "default.yaml", ROOT / "config" / "selector-model.yaml"
@@ -61,6 +62,12 @@ def test_a_selector_ships_beside_the_checkpoints_with_its_own_record_and_survive
     with pytest.raises(InputError, match=r"selector\.joblib: selector not found"):
         export_selector(src, dest, load_config(selector_config), selector_config)
     (src / SELECTOR_FILE).write_bytes(b"selector" * 50)
+    with pytest.raises(InputError, match="no transfer shards beside the selector"):  # its training data ship too
+        export_selector(src, dest, load_config(selector_config), selector_config)
+    for k, (a, b) in enumerate(((0.3, 0.2), (0.2, 0.3))):
+        shard = src.parent / "transfer" / f"alpha={a:.3f}" / f"from={b:.3f}" / "shard-0.parquet"
+        shard.parent.mkdir(parents=True)
+        pd.DataFrame({"alpha": [a] * 3, "source_alpha": [b] * 3, "iterations": [10 + k, 20, 30]}).to_parquet(shard)
     with pytest.raises(InputError, match="transfer.enabled is false"):  # not the config that trained it
         export_selector(src, dest, load_config(default), default)
     manifest = export_selector(src, dest, load_config(selector_config), selector_config, ROOT / "data" / "library")
@@ -68,7 +75,8 @@ def test_a_selector_ships_beside_the_checkpoints_with_its_own_record_and_survive
     assert record["config_hash"] == load_config(selector_config).hash and record["transfer"]["enabled"]
     assert len(record["train_alphas"]) == 14 and record["library_rows"] > 0
     assert manifest["config_hash"] == load_config(default).hash  # the checkpoints' record is untouched
-    assert verify_models(dest, (SELECTOR_FILE,))["selector"] == record
+    assert verify_models(dest, (SELECTOR_FILE, SELECTOR_DATA))["selector"] == record
+    assert len(pd.read_parquet(dest / SELECTOR_DATA)) == 6 and manifest["files"][-1]["rows"] == 6
     export_models(src, dest, load_config(default), default, ROOT / "data" / "library")  # re-export: the selector stays
     assert verify_models(dest, (*CHECKPOINT_FILES, SELECTOR_FILE))["selector"] == record
     (dest / SELECTOR_FILE).write_bytes(b"edited")

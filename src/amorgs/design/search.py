@@ -341,8 +341,10 @@ def make_sampler(request: DesignRequest, cfg, problem):
 
         shipped = verify_models(models_dir, needed)
         if shipped is not None:
-            info["models_git_commit"] = shipped["git_commit"]
-            note = stale_models_note(shipped, request.library_dir, models_dir)
+            # a selector-only arm is judged by the selector's own record (it is trained on its own run's library)
+            record = shipped if arm.models else shipped.get("selector", shipped)
+            info["models_git_commit"] = record["git_commit"]
+            note = stale_models_note(record, request.library_dir, models_dir)
             if note:
                 info["models_note"] = note
     hq = None

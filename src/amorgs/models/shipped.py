@@ -5,7 +5,8 @@ Layout::
 
     data/models/cr3bp/{cvae_gmm,vanilla_cvae,lstm}.pt     the checkpoints of one workflow run's train step
     data/models/cr3bp/selector.joblib                     the transfer selector of one run's train_selector
-                                                          (issue 38 §5; ``export_selector``), optional
+                                                          (issue 38 §5; ``export_selector``), optional, and
+    data/models/cr3bp/selector.transfer.parquet           its training data: every transfer solve of that run
     data/models/cr3bp/provenance.json                     manifest: per file SHA-256 and bytes; the config
                                                           (file, hash), git commit, export time, and the
                                                           library manifest's SHA-256 + rows they were trained on,
@@ -23,6 +24,8 @@ import json
 import shutil
 from pathlib import Path
 
+import pandas as pd
+
 from amorgs.data.io import atomic_path, write_json
 from amorgs.data.library import MANIFEST as LIBRARY_MANIFEST
 from amorgs.data.library import git_commit, read_manifest, sha256_file
@@ -30,6 +33,8 @@ from amorgs.errors import InputError
 from amorgs.models.names import PAPER_MODELS
 
 MANIFEST = "provenance.json"
+#: The transfer data the shipped selector was trained on (every transfer shard of its run, one table).
+SELECTOR_DATA = "selector.transfer.parquet"
 CHECKPOINT_FILES = tuple(f"{name}.pt" for name in PAPER_MODELS)
 
 
@@ -63,25 +68,26 @@ def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: st
     }
     kept = _shipped_selector(dst)  # a selector shipped earlier stays, with its own record
     if kept is not None:
-        manifest["files"].append(kept[0])
+        manifest["files"] += kept[0]
         manifest["selector"] = kept[1]
     write_json(manifest, dst / MANIFEST)
     return manifest
 
 
-def _shipped_selector(dest: Path) -> tuple[dict, dict] | None:
-    """(file entry, ``selector`` record) of the selector shipped in ``dest`` when its manifest lists it and the
-    file still matches; otherwise None."""
+def _shipped_selector(dest: Path) -> tuple[list[dict], dict] | None:
+    """(file entries, ``selector`` record) of the selector and its data shipped in ``dest`` when its manifest
+    lists both and the files still match; otherwise None."""
     from amorgs.models.selector import SELECTOR_FILE
 
     path = dest / MANIFEST
     if not path.is_file():
         return None
     old = json.loads(path.read_text())
-    entry = next((f for f in old.get("files", []) if f["file"] == SELECTOR_FILE), None)
-    if entry is None or "selector" not in old or not (dest / SELECTOR_FILE).is_file():
+    entries = [f for f in old.get("files", []) if f["file"] in (SELECTOR_FILE, SELECTOR_DATA)]
+    if len(entries) != 2 or "selector" not in old:
         return None
-    return (entry, old["selector"]) if sha256_file(dest / SELECTOR_FILE) == entry["sha256"] else None
+    intact = all((dest / f["file"]).is_file() and sha256_file(dest / f["file"]) == f["sha256"] for f in entries)
+    return (entries, old["selector"]) if intact else None
 
 
 def _library_record(library_dir: str | Path, problem: str) -> dict:
@@ -110,12 +116,19 @@ def export_selector(models_dir: str | Path, dest: str | Path, cfg, config_file: 
                          "transfer.enabled, e.g. config/selector-model.yaml)")
     if not cfg.transfer.enabled:
         raise InputError(f"{config_file}: transfer.enabled is false — not the config of a run that trained a selector")
+    shards = sorted((src.parent / "transfer").glob("alpha=*/from=*/shard-*.parquet"))  # layout.TRANSFER_SHARD
+    if not shards:
+        raise InputError(f"{src.parent / 'transfer'}: no transfer shards beside the selector (the run's training data)")
     manifest = json.loads(path.read_text())
     with atomic_path(dst / SELECTOR_FILE) as tmp:
         shutil.copyfile(src / SELECTOR_FILE, tmp)
-    entry = {"file": SELECTOR_FILE, "sha256": sha256_file(dst / SELECTOR_FILE),
-             "bytes": (dst / SELECTOR_FILE).stat().st_size}
-    manifest["files"] = [f for f in manifest["files"] if f["file"] != SELECTOR_FILE] + [entry]
+    data = pd.concat([pd.read_parquet(f) for f in shards], ignore_index=True)
+    with atomic_path(dst / SELECTOR_DATA) as tmp:
+        data.to_parquet(tmp, index=False, compression="zstd")
+    entries = [{"file": name, "sha256": sha256_file(dst / name), "bytes": (dst / name).stat().st_size}
+               for name in (SELECTOR_FILE, SELECTOR_DATA)]
+    entries[1]["rows"] = len(data)
+    manifest["files"] = [f for f in manifest["files"] if f["file"] not in (SELECTOR_FILE, SELECTOR_DATA)] + entries
     manifest["selector"] = {
         "config_file": str(config_file), "config_hash": cfg.hash,
         "transfer": cfg.transfer.model_dump(mode="json"),
