@@ -208,6 +208,13 @@ class Resources(Section):
     analyze: Job = Job(threads=1, mem_mb=4000, runtime_min=30)
 
 
+def _needs_validation_share(section):
+    """``patience`` needs a held-out share to watch (``validation_fraction`` > 0)."""
+    if section.patience and not section.validation_fraction:
+        raise ValueError(f"patience {section.patience} needs validation_fraction > 0 (the held-out rows it watches)")
+    return section
+
+
 class DejongCVAE(Section):
     """The GMM-prior CVAE on the De Jong minima (paper Sec. V.A, Table 3): ``preset`` widths; Adam with
     ``learning_rate`` for ``epochs`` epochs of ``batch_size`` rows; ``seed`` fixes weights, shuffling and
@@ -223,8 +230,15 @@ class DejongCVAE(Section):
     epochs: PositiveInt = 1500
     batch_size: Annotated[int, Field(ge=2)] = 16384
     seed: Seed = 7
+    validation_fraction: Annotated[float, Field(ge=0, lt=1, description=(
+        "share of the minima held out, seeded, for the validation loss of early stopping (0: none)"))] = 0.0
+    patience: Annotated[int, Field(ge=0, description=(
+        "stop after this many epochs without a better validation loss and keep the best epoch's weights "
+        "(0: train every epoch; needs validation_fraction)"))] = 0
     n_samples: PositiveInt = 1000  # per test α, as in Fig. 16b
     radius: PositiveFloat = 3.0  # a sample within 3 units of a true minimum is a hit
+
+    _early_stopping = model_validator(mode="after")(_needs_validation_share)
 
 
 class Cr3bpAnalysis(Section):
@@ -250,8 +264,17 @@ class Cr3bpModels(Section):
     extra_seeds: tuple[Seed, ...] = ()
     data_fractions: tuple[Annotated[float, Field(gt=0, lt=1)], ...] = (0.1, 0.5)  # Fig. 18
     n_samples: PositiveInt = 1000  # per test α, Figs. 17–20
+    max_rows_per_alpha: PositiveInt | None = Field(None, description=(
+        "train on at most this many high-quality rows of each training α, a seeded sample (the seed's); the "
+        "data fractions are taken of that sample (null: every row)"))
+    validation_fraction: Annotated[float, Field(ge=0, lt=1, description=(
+        "share of the training rows held out, seeded, for the validation loss of early stopping (0: none)"))] = 0.0
+    patience: Annotated[int, Field(ge=0, description=(
+        "stop after this many epochs without a better validation loss and keep the best epoch's weights "
+        "(0: train every epoch; needs validation_fraction)"))] = 0
 
     _unique_seeds = field_validator("extra_seeds", "data_fractions")(_unique)
+    _early_stopping = model_validator(mode="after")(_needs_validation_share)
 
     @property
     def seeds(self) -> tuple[int, ...]:

@@ -41,6 +41,13 @@ TRANSFER_SHARD = "results/{problem}/transfer/alpha={alpha}/from={source}/shard-{
 SELECTOR_MODEL = "results/cr3bp/models/selector.joblib"
 SELECTOR_REPORT = "results/cr3bp/models/selector.training.json"
 TABLE = "results/tables/{name}"
+#: Snakemake's ``benchmark:`` file of every job (wall, CPU, memory; the rules in workflow/rules/), and the
+#: per-rule report the workflow writes from them when it finishes (:mod:`amorgs.runtime_report`).
+BENCHMARK_DIR = "results/benchmarks"
+RUNTIME_TABLE = "results/tables/runtime_by_rule.csv"
+RUNTIME_JOBS = "results/tables/runtime_by_job.csv"
+RUNTIME_MARKDOWN = "results/tables/runtime_by_rule.md"
+RUNTIME_FIGURE = "results/figures/runtime_by_rule.png"
 
 #: The tables of the structure analysis (:class:`amorgs.analysis.structure_result.StructureResult`) and the
 #: figures drawn from it (:func:`amorgs.figures.structure.structure_figures`), by name.

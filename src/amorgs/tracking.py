@@ -317,6 +317,21 @@ def stop_tracking(store_dir: str | Path = STORE_DIR) -> None:
     (Path(store_dir) / INVOCATION_FILE).unlink(missing_ok=True)
 
 
+def invocation_run(store_dir: str | Path = STORE_DIR) -> JobRun:
+    """The current invocation's parent run as a :class:`JobRun`, to log what the workflow as a whole made (it is
+    not closed here: :func:`finish_invocation` does); untracked when there is none or MLflow fails."""
+    store = Path(store_dir)
+    path = store / INVOCATION_FILE
+    if not path.exists():
+        return JobRun(store)
+    try:
+        inv = read_json(path)
+        return JobRun(store, _client(inv["tracking_uri"]), inv["parent_run_id"], inv["experiment_id"])
+    except Exception as exc:  # noqa: BLE001
+        _warn("opening the workflow run", exc)
+        return JobRun(store)
+
+
 def finish_invocation(status: str, store_dir: str | Path = STORE_DIR) -> None:
     """Close the current parent run with ``status`` (``FINISHED``, ``FAILED``, ``KILLED``); warn, never raise."""
     store = Path(store_dir)

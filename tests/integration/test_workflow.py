@@ -164,6 +164,15 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
     )
     expected = sorted((rule, json.dumps(w, sort_keys=True)) for rule, w in expected_jobs(cfg))
     assert sorted((c.data.tags["rule"], c.data.tags["wildcards"]) for c in children) == expected
+    # the runtime report (issue 40 §1): every job's benchmark, per rule, written and logged to the parent run
+    runtime = pd.read_csv(wd / "results" / "tables" / "runtime_by_rule.csv").set_index("rule")
+    per_rule = pd.Series([rule for rule, _ in expected_jobs(cfg)]).value_counts()
+    assert runtime["jobs"].sort_index().to_dict() == per_rule.sort_index().to_dict()
+    assert (runtime["cpu_min"] > 0).all() and (runtime["wall_min"] > 0).all() and runtime["cpu_share"].sum() == pytest.approx(1)
+    assert (wd / "results" / "figures" / "runtime_by_rule.png").stat().st_size > 0
+    assert parent.data.metrics["runtime/jobs"] == len(expected)
+    assert {a.path for a in client.list_artifacts(parent.info.run_id, "runtime")} >= {
+        "runtime/runtime_by_rule.csv", "runtime/runtime_by_rule.png"}
     for child in children:
         tags = child.data.tags
         assert child.info.status == "FINISHED"

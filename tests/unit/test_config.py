@@ -64,9 +64,15 @@ def test_every_problem_is_one_line_naming_file_and_key(tmp_path):
     assert len(lines) == 6 and "seed" not in msg.replace("sed", "")  # a key left out takes its default
 
 
-def test_the_defaults_are_the_main_job_and_default_yaml_changes_nothing():
-    assert overrides("default") == {}
-    assert load("default") == C.Config() == C.from_mapping({})
+def test_the_defaults_are_the_main_job_but_for_its_bounded_training():
+    """config/default.yaml is the typed defaults but for bounded training (issue 40 §3): a capped per-α sample and
+    early stopping — the typed defaults, which every other config starts from, train on everything."""
+    assert overrides("default") == {
+        "cr3bp_models": {"max_rows_per_alpha": 600, "validation_fraction": 0.1, "patience": 30}}
+    typed = C.Config()
+    assert typed.cr3bp_models.max_rows_per_alpha is None and typed.cr3bp_models.patience == 0
+    assert typed.dejong_cvae.patience == 0
+    assert C.Config() == C.from_mapping({})
     assert C.defaults() == C.Config().model_dump(mode="json")
     assert load("default").ablation.samplers == C.Config().ablation.samplers  # every arm of the table
 
@@ -217,7 +223,8 @@ def test_hash_is_stable_and_sensitive():
     assert C.from_mapping(changed).hash != a.hash
     # the hash is the effective config's: the overrides alone, or every key spelled out, hash alike
     assert C.from_mapping(overrides()).hash == a.hash == load("smoke").hash
-    assert C.from_mapping({}).hash == C.from_mapping(C.defaults()).hash == load("default").hash
+    assert C.from_mapping({}).hash == C.from_mapping(C.defaults()).hash
+    assert C.from_mapping(overrides("default")).hash == load("default").hash
 
 
 #: The hashes of the shipped configs, pinned: a change to a default or a shipped file changes them, and must
@@ -236,8 +243,11 @@ def test_hash_is_stable_and_sensitive():
 #: too (issue 38 §2).  ``ablation.selection_oversample`` (issue 38 §3, arm amorgs_selected, which smoke runs too)
 #: added a key: before it default 34f56b9bfa3e, smoke cf804002275d, study 686f26e550b3, study-paper d01bdd3a0de9,
 #: paper c153d2360a23 (no solver options changed).
-HASHES = {"default": "2285aed86c5b", "smoke": "5beeb5860437", "study": "99f6bcf284ca",
-          "study-paper": "f446678cf96d", "paper": "a7edb7f1dc16"}
+#: Bounded training (issue 40 §3) added max_rows_per_alpha, validation_fraction and patience (off by default) to
+#: every effective config, and default.yaml turned them on: before, default 2285aed86c5b, smoke 5beeb5860437,
+#: study 99f6bcf284ca, study-paper f446678cf96d, paper a7edb7f1dc16.
+HASHES = {"default": "2535374921a9", "smoke": "bb702dabd54e", "study": "b393108e152d",
+          "study-paper": "9b7c46269e8b", "paper": "760b6dc0b88d"}
 
 
 @pytest.mark.parametrize("name", HASHES)

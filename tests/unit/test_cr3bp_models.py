@@ -13,6 +13,7 @@ from cr3bp_synthetic import synthetic_hq
 from amorgs.models.cr3bp_models import (
     PRESETS,
     TRAINERS,
+    cap_per_alpha,
     lstm_config,
     stored_from_vanilla,
     stored_vectors,
@@ -59,6 +60,18 @@ def test_vanilla_layout_round_trip():
     np.testing.assert_array_equal(v[:, :4], x[:, :4])
     np.testing.assert_allclose(np.linalg.norm(v[:, 4:].reshape(20, 20, 3), axis=-1), x[:, 6::3])  # ‖u_k‖ = ρ_k
     np.testing.assert_allclose(stored_from_vanilla(v), x, atol=1e-9)
+
+
+def test_the_cap_keeps_at_most_n_rows_of_every_alpha_seeded():
+    hq = synthetic_hq(400)
+    counts = hq.groupby("alpha").size()
+    cap = int(counts.median())
+    capped = cap_per_alpha(hq, cap, seed=3)
+    assert (capped.groupby("alpha").size() == counts.clip(upper=cap)).all()  # a sparse α keeps every row
+    assert capped.merge(hq).shape[0] == len(capped)
+    pd.testing.assert_frame_equal(cap_per_alpha(hq, cap, seed=3), capped)
+    assert not cap_per_alpha(hq, cap, seed=4).equals(capped)
+    assert cap_per_alpha(hq, None, seed=3) is hq
 
 
 def test_subsample_keeps_a_fraction_of_every_alpha():

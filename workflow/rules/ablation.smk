@@ -12,6 +12,8 @@ rule ablation_cell:
         **step_outputs("ablation_cell"),
     log:
         "logs/ablation_cell/alpha={alpha}/{sampler}.log",
+    benchmark:
+        "results/benchmarks/ablation_cell/alpha={alpha}/{sampler}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("ablation_cell")
@@ -30,6 +32,8 @@ rule ablation_cell_replicate:
         **step_outputs("ablation_cell_replicate"),
     log:
         "logs/ablation_cell/seed={mseed}/alpha={alpha}/{sampler}.log",
+    benchmark:
+        "results/benchmarks/ablation_cell_replicate/seed={mseed}/alpha={alpha}/{sampler}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("ablation_cell_replicate")
@@ -48,6 +52,8 @@ rule ablation_cell_fraction:
         **step_outputs("ablation_cell_fraction"),
     log:
         "logs/ablation_cell/fraction={fraction}/alpha={alpha}/{sampler}.log",
+    benchmark:
+        "results/benchmarks/ablation_cell_fraction/fraction={fraction}/alpha={alpha}/{sampler}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("ablation_cell_fraction")
@@ -71,6 +77,8 @@ rule ablation_report:
         **step_outputs("ablation_report"),
     log:
         "logs/ablation_report.log",
+    benchmark:
+        "results/benchmarks/ablation_report/job.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("ablation_report")

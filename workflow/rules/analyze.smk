@@ -10,6 +10,8 @@ rule analyze_cr3bp:
         **step_outputs("analyze_cr3bp"),
     log:
         "logs/analyze_cr3bp.log",
+    benchmark:
+        "results/benchmarks/analyze_cr3bp/job.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("analyze_cr3bp")

@@ -128,7 +128,12 @@ def start_tracking():
 
 
 def finish_tracking(status):
-    """onsuccess/onerror: close the parent run."""
+    """onsuccess/onerror: on success the runtime report (per rule, from the jobs' benchmark files), then close
+    the parent run."""
+    if status == "FINISHED":
+        from amorgs.runtime_report import report_finished_workflow
+
+        report_finished_workflow(CFG.mlflow.enabled)
     if CFG.mlflow.enabled:
         from amorgs import tracking
 

@@ -8,6 +8,8 @@ rule filter:
         **step_outputs("filter"),
     log:
         "logs/filter/{problem}.log",
+    benchmark:
+        "results/benchmarks/filter/{problem}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("filter")

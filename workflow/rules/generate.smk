@@ -8,6 +8,8 @@ rule generate:
         **step_outputs("generate"),
     log:
         "logs/generate/{problem}/alpha={alpha}/shard-{shard}.log",
+    benchmark:
+        "results/benchmarks/generate/{problem}/alpha={alpha}/shard-{shard}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("generate")
@@ -27,6 +29,8 @@ rule merge:
         **step_outputs("merge"),
     log:
         "logs/merge/{problem}/alpha={alpha}.log",
+    benchmark:
+        "results/benchmarks/merge/{problem}/alpha={alpha}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("merge")

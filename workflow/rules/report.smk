@@ -8,6 +8,8 @@ rule fig02_foxholes:
         **step_outputs("fig02_foxholes"),
     log:
         "logs/fig02_foxholes.log",
+    benchmark:
+        "results/benchmarks/fig02_foxholes/job.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("fig02_foxholes")
@@ -27,6 +29,8 @@ rule fig16_dejong_predictions:
         **step_outputs("fig16_dejong_predictions"),
     log:
         "logs/fig16_dejong_predictions.log",
+    benchmark:
+        "results/benchmarks/fig16_dejong_predictions/job.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("fig16_dejong_predictions")

@@ -12,6 +12,8 @@ rule train_dejong_cvae:
         **step_outputs("train_dejong_cvae"),
     log:
         "logs/train_dejong_cvae.log",
+    benchmark:
+        "results/benchmarks/train_dejong_cvae/job.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_dejong_cvae")
@@ -30,6 +32,8 @@ rule predict_dejong_cvae:
         **step_outputs("predict_dejong_cvae"),
     log:
         "logs/predict_dejong_cvae.log",
+    benchmark:
+        "results/benchmarks/predict_dejong_cvae/job.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("predict_dejong_cvae")
@@ -48,6 +52,8 @@ rule train_cr3bp:
         **step_outputs("train_cr3bp"),
     log:
         "logs/train_cr3bp/{model}.log",
+    benchmark:
+        "results/benchmarks/train_cr3bp/{model}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_cr3bp")
@@ -66,6 +72,8 @@ rule train_cr3bp_fraction:
         **step_outputs("train_cr3bp_fraction"),
     log:
         "logs/train_cr3bp/fraction={fraction}/{model}.log",
+    benchmark:
+        "results/benchmarks/train_cr3bp_fraction/fraction={fraction}/{model}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_cr3bp_fraction")
@@ -84,6 +92,8 @@ rule train_cr3bp_replicate:
         **step_outputs("train_cr3bp_replicate"),
     log:
         "logs/train_cr3bp/seed={mseed}/{model}.log",
+    benchmark:
+        "results/benchmarks/train_cr3bp_replicate/seed={mseed}/{model}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_cr3bp_replicate")
@@ -104,6 +114,8 @@ rule predict_cr3bp:
         **step_outputs("predict_cr3bp"),
     log:
         "logs/predict_cr3bp.log",
+    benchmark:
+        "results/benchmarks/predict_cr3bp/job.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("predict_cr3bp")

@@ -10,6 +10,8 @@ rule transfer:
         **step_outputs("transfer"),
     log:
         "logs/transfer/{problem}/alpha={alpha}/from={source}/shard-{shard}.log",
+    benchmark:
+        "results/benchmarks/transfer/{problem}/alpha={alpha}/from={source}/shard-{shard}.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("transfer")
@@ -28,6 +30,8 @@ rule train_selector:
         **step_outputs("train_selector"),
     log:
         "logs/train_selector.log",
+    benchmark:
+        "results/benchmarks/train_selector/job.tsv",
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_selector")

@@ -49,7 +49,8 @@ def run_train(job: Job, run) -> None:
     df = rows_at_any(pd.read_parquet(data), s.train_alphas)
     x = df[names].to_numpy(dtype=np.float64, copy=True)
     alpha = df["alpha"].to_numpy(dtype=np.float64, copy=True)
-    cfg = TrainConfig(epochs=m.epochs, batch_size=m.batch_size, lr=m.learning_rate, seed=m.seed, device="cpu")
+    cfg = TrainConfig(epochs=m.epochs, batch_size=m.batch_size, lr=m.learning_rate, seed=m.seed, device="cpu",
+                      validation_fraction=m.validation_fraction, patience=m.patience)
     run.log_params({"rows": len(df)})
     run.log_dataset(df, data, "training")
     run.start_model("cvae_gmm", {"preset": m.preset, **vars(cfg)})
@@ -58,9 +59,10 @@ def run_train(job: Job, run) -> None:
     history = train(model, x, alpha, cfg, on_epoch=lambda epoch, metrics: run.log_metrics(metrics, step=epoch))
     with atomic_path(output) as tmp:
         cvae.save(model, tmp)
-    run.log_metrics({f"final_{k}": v[-1] for k, v in history.items() if k != "epoch"})
-    run.finish_model(output, step=m.epochs)
-    print(f"{output}: trained {m.epochs} epochs on {len(df)} minima")
+    ran = len(history["epoch"])
+    run.log_metrics({f"final_{k}": v[-1] for k, v in history.items() if k != "epoch"} | {"epochs_run": ran})
+    run.finish_model(output, step=ran)
+    print(f"{output}: trained {ran} of at most {m.epochs} epochs on {len(df)} minima")
 
 
 class DejongPredictSettings(Section):

@@ -44,7 +44,7 @@ def run_train(job: Job, run) -> None:
 
     from amorgs.data.io import atomic_path, write_json
     from amorgs.models import cvae, lstm
-    from amorgs.models.cr3bp_models import TRAINERS, subsample
+    from amorgs.models.cr3bp_models import TRAINERS, cap_per_alpha, subsample
     from amorgs.models.training import TrainConfig
 
     s: TrainSettings = job.settings
@@ -55,23 +55,33 @@ def run_train(job: Job, run) -> None:
     if len(hq) < 2:
         labels = sorted(alpha_label(a) for a in s.train_alphas)
         raise ValueError(f"{data}: {len(hq)} high-quality row(s) at the training α {labels}; need ≥ 2")
+    available = len(hq)
+    hq = cap_per_alpha(hq, m.max_rows_per_alpha, s.seed)
     if s.fraction < 1.0:
         hq = subsample(hq, s.fraction, s.seed)
-    cfg = TrainConfig(epochs=m.epochs, batch_size=m.batch_size, lr=m.learning_rate, seed=s.seed, device="cpu")
-    run.log_params({"rows": len(hq), "threads": job.threads})
+    cfg = TrainConfig(epochs=m.epochs, batch_size=m.batch_size, lr=m.learning_rate, seed=s.seed, device="cpu",
+                      validation_fraction=m.validation_fraction, patience=m.patience)
+    run.log_params({"rows": len(hq), "rows_available": available, "threads": job.threads})
     run.log_dataset(hq, data, "training")
     run.start_model(s.model, {"preset": m.preset, "fraction": s.fraction, **vars(cfg)})
     torch.manual_seed(s.seed)
     cpu0, wall0 = time.process_time(), time.perf_counter()
-    model = TRAINERS[s.model](hq, m.preset, cfg, on_epoch=lambda epoch, metrics: run.log_metrics(metrics, step=epoch))
+    epochs = []
+    def on_epoch(epoch: int, metrics: dict) -> None:
+        epochs.append(epoch)
+        run.log_metrics(metrics, step=epoch)
+
+    model = TRAINERS[s.model](hq, m.preset, cfg, on_epoch=on_epoch)
     cpu_s, wall_s = time.process_time() - cpu0, time.perf_counter() - wall0
     with atomic_path(output) as tmp:
         (lstm.save if s.model == "lstm" else cvae.save)(model, tmp)
-    write_json({"model": s.model, "seed": s.seed, "fraction": s.fraction, "rows": len(hq), "epochs": m.epochs,
-                "threads": job.threads, "train_cpu_s": cpu_s, "train_wall_s": wall_s}, job.output["report"])
-    run.log_metrics({"train_cpu_s": cpu_s, "train_wall_s": wall_s})
-    run.finish_model(output, step=m.epochs)  # the checkpoint as a logged model and under models/
-    print(f"{output}: {s.model} trained {m.epochs} epochs on {len(hq)} solutions")
+    ran = len(epochs)
+    write_json({"model": s.model, "seed": s.seed, "fraction": s.fraction, "rows": len(hq), "rows_available": available,
+                "epochs": ran, "max_epochs": m.epochs, "threads": job.threads, "train_cpu_s": cpu_s,
+                "train_wall_s": wall_s}, job.output["report"])
+    run.log_metrics({"train_cpu_s": cpu_s, "train_wall_s": wall_s, "epochs_run": ran})
+    run.finish_model(output, step=ran)  # the checkpoint as a logged model and under models/
+    print(f"{output}: {s.model} trained {ran} of at most {m.epochs} epochs on {len(hq)} of {available} solutions")
 
 
 def fraction_model_jobs(cfg: Config) -> list[dict[str, str]]:
