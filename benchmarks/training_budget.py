@@ -114,7 +114,7 @@ def dejong_rows(args, cfg) -> list[dict]:
         found = [s["minima_covered"] for s in scores]
         rows.append({"problem": "dejong", "model": "cvae_gmm", "variant": variant, "rows": len(x), "epochs run": ran,
                      "CPU s": round(cpu_s, 1),
-                     "test-α loss": " / ".join(f"{h:.3f}" for h in hit) + " hit; minima " + " / ".join(map(str, found))})
+                     "test-α quality": " / ".join(f"{h:.3f}" for h in hit) + " hit; minima " + " / ".join(map(str, found))})
         print(rows[-1], flush=True)
     return rows
 

@@ -13,7 +13,7 @@ rule ablation_cell:
     log:
         "logs/ablation_cell/alpha={alpha}/{sampler}.log",
     benchmark:
-        "results/benchmarks/ablation_cell/alpha={alpha}/{sampler}.tsv",
+        "results/benchmarks/ablation_cell/alpha={alpha}/{sampler}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("ablation_cell")
@@ -33,7 +33,7 @@ rule ablation_cell_replicate:
     log:
         "logs/ablation_cell/seed={mseed}/alpha={alpha}/{sampler}.log",
     benchmark:
-        "results/benchmarks/ablation_cell_replicate/seed={mseed}/alpha={alpha}/{sampler}.tsv",
+        "results/benchmarks/ablation_cell_replicate/seed={mseed}/alpha={alpha}/{sampler}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("ablation_cell_replicate")
@@ -53,7 +53,7 @@ rule ablation_cell_fraction:
     log:
         "logs/ablation_cell/fraction={fraction}/alpha={alpha}/{sampler}.log",
     benchmark:
-        "results/benchmarks/ablation_cell_fraction/fraction={fraction}/alpha={alpha}/{sampler}.tsv",
+        "results/benchmarks/ablation_cell_fraction/fraction={fraction}/alpha={alpha}/{sampler}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("ablation_cell_fraction")
@@ -78,7 +78,7 @@ rule ablation_report:
     log:
         "logs/ablation_report.log",
     benchmark:
-        "results/benchmarks/ablation_report/job.tsv",
+        "results/benchmarks/ablation_report/job.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("ablation_report")

@@ -11,7 +11,7 @@ rule analyze_cr3bp:
     log:
         "logs/analyze_cr3bp.log",
     benchmark:
-        "results/benchmarks/analyze_cr3bp/job.tsv",
+        "results/benchmarks/analyze_cr3bp/job.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("analyze_cr3bp")

@@ -9,7 +9,7 @@ rule filter:
     log:
         "logs/filter/{problem}.log",
     benchmark:
-        "results/benchmarks/filter/{problem}.tsv",
+        "results/benchmarks/filter/{problem}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("filter")

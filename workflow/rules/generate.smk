@@ -9,7 +9,7 @@ rule generate:
     log:
         "logs/generate/{problem}/alpha={alpha}/shard-{shard}.log",
     benchmark:
-        "results/benchmarks/generate/{problem}/alpha={alpha}/shard-{shard}.tsv",
+        "results/benchmarks/generate/{problem}/alpha={alpha}/shard-{shard}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("generate")
@@ -30,7 +30,7 @@ rule merge:
     log:
         "logs/merge/{problem}/alpha={alpha}.log",
     benchmark:
-        "results/benchmarks/merge/{problem}/alpha={alpha}.tsv",
+        "results/benchmarks/merge/{problem}/alpha={alpha}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("merge")

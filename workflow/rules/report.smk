@@ -9,7 +9,7 @@ rule fig02_foxholes:
     log:
         "logs/fig02_foxholes.log",
     benchmark:
-        "results/benchmarks/fig02_foxholes/job.tsv",
+        "results/benchmarks/fig02_foxholes/job.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("fig02_foxholes")
@@ -30,7 +30,7 @@ rule fig16_dejong_predictions:
     log:
         "logs/fig16_dejong_predictions.log",
     benchmark:
-        "results/benchmarks/fig16_dejong_predictions/job.tsv",
+        "results/benchmarks/fig16_dejong_predictions/job.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("fig16_dejong_predictions")

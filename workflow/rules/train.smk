@@ -13,7 +13,7 @@ rule train_dejong_cvae:
     log:
         "logs/train_dejong_cvae.log",
     benchmark:
-        "results/benchmarks/train_dejong_cvae/job.tsv",
+        "results/benchmarks/train_dejong_cvae/job.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_dejong_cvae")
@@ -33,7 +33,7 @@ rule predict_dejong_cvae:
     log:
         "logs/predict_dejong_cvae.log",
     benchmark:
-        "results/benchmarks/predict_dejong_cvae/job.tsv",
+        "results/benchmarks/predict_dejong_cvae/job.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("predict_dejong_cvae")
@@ -53,7 +53,7 @@ rule train_cr3bp:
     log:
         "logs/train_cr3bp/{model}.log",
     benchmark:
-        "results/benchmarks/train_cr3bp/{model}.tsv",
+        "results/benchmarks/train_cr3bp/{model}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_cr3bp")
@@ -73,7 +73,7 @@ rule train_cr3bp_fraction:
     log:
         "logs/train_cr3bp/fraction={fraction}/{model}.log",
     benchmark:
-        "results/benchmarks/train_cr3bp_fraction/fraction={fraction}/{model}.tsv",
+        "results/benchmarks/train_cr3bp_fraction/fraction={fraction}/{model}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_cr3bp_fraction")
@@ -93,7 +93,7 @@ rule train_cr3bp_replicate:
     log:
         "logs/train_cr3bp/seed={mseed}/{model}.log",
     benchmark:
-        "results/benchmarks/train_cr3bp_replicate/seed={mseed}/{model}.tsv",
+        "results/benchmarks/train_cr3bp_replicate/seed={mseed}/{model}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_cr3bp_replicate")
@@ -115,7 +115,7 @@ rule predict_cr3bp:
     log:
         "logs/predict_cr3bp.log",
     benchmark:
-        "results/benchmarks/predict_cr3bp/job.tsv",
+        "results/benchmarks/predict_cr3bp/job.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("predict_cr3bp")

@@ -11,7 +11,7 @@ rule transfer:
     log:
         "logs/transfer/{problem}/alpha={alpha}/from={source}/shard-{shard}.log",
     benchmark:
-        "results/benchmarks/transfer/{problem}/alpha={alpha}/from={source}/shard-{shard}.tsv",
+        "results/benchmarks/transfer/{problem}/alpha={alpha}/from={source}/shard-{shard}.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("transfer")
@@ -31,7 +31,7 @@ rule train_selector:
     log:
         "logs/train_selector.log",
     benchmark:
-        "results/benchmarks/train_selector/job.tsv",
+        "results/benchmarks/train_selector/job.tsv"
     conda:
         "../envs/amorgs.yaml"
     threads: step_threads("train_selector")
