@@ -50,7 +50,7 @@ def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: st
             raise InputError(f"{src / name}: checkpoint not found (run the workflow's train step first)")
         with atomic_path(dst / name) as tmp:
             shutil.copyfile(src / name, tmp)
-        files.append({"file": name, "sha256": sha256_file(dst / name), "bytes": (dst / name).stat().st_size})
+        files.append(_file_entry(dst / name))
     library = read_manifest(library_dir, problem)
     manifest = {
         "problem": problem,
@@ -59,7 +59,7 @@ def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: st
         "config_hash": cfg.hash,
         "cr3bp_models": cfg.cr3bp_models.model_dump(mode="json"),
         "train_alphas": list(cfg.problems.cr3bp.alphas.train_values()),
-        **_library_record(library_dir, problem),
+        **_library_record(library, library_dir, problem),
         # the code that solved the training rows: each generation's options hashes and NLP fingerprints (issue 37)
         "library_identity": [{k: g.get(k) for k in ("generation", "options_hashes", "nlp_fingerprints")}
                              for g in (library or {}).get("generations", [])],
@@ -90,9 +90,13 @@ def _shipped_selector(dest: Path) -> tuple[list[dict], dict] | None:
     return (entries, old["selector"]) if intact else None
 
 
-def _library_record(library_dir: str | Path, problem: str) -> dict:
-    """The library a model was trained on: its manifest's SHA-256 and its rows."""
-    library = read_manifest(library_dir, problem)
+def _file_entry(path: Path) -> dict:
+    """A manifest's record of one shipped file: name, SHA-256, bytes."""
+    return {"file": path.name, "sha256": sha256_file(path), "bytes": path.stat().st_size}
+
+
+def _library_record(library: dict | None, library_dir: str | Path, problem: str) -> dict:
+    """The library a model was trained on (``library``: its manifest, as read): the manifest's SHA-256 and rows."""
     library_path = Path(library_dir) / problem / LIBRARY_MANIFEST
     return {"library_manifest_sha256": sha256_file(library_path) if library is not None else None,
             "library_rows": library["totals"]["rows"] if library is not None else 0}
@@ -125,15 +129,14 @@ def export_selector(models_dir: str | Path, dest: str | Path, cfg, config_file: 
     data = pd.concat([pd.read_parquet(f) for f in shards], ignore_index=True)
     with atomic_path(dst / SELECTOR_DATA) as tmp:
         data.to_parquet(tmp, index=False, compression="zstd")
-    entries = [{"file": name, "sha256": sha256_file(dst / name), "bytes": (dst / name).stat().st_size}
-               for name in (SELECTOR_FILE, SELECTOR_DATA)]
+    entries = [_file_entry(dst / name) for name in (SELECTOR_FILE, SELECTOR_DATA)]
     entries[1]["rows"] = len(data)
     manifest["files"] = [f for f in manifest["files"] if f["file"] not in (SELECTOR_FILE, SELECTOR_DATA)] + entries
     manifest["selector"] = {
         "config_file": str(config_file), "config_hash": cfg.hash,
         "transfer": cfg.transfer.model_dump(mode="json"),
         "train_alphas": list(cfg.problems.cr3bp.alphas.train_values()),
-        **_library_record(library_dir, problem),
+        **_library_record(read_manifest(library_dir, problem), library_dir, problem),
         "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "git_commit": git_commit(),
     }
