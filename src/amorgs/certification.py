@@ -33,11 +33,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from amorgs.checkout import fingerprints_at, is_reachable, repository_root, resolve_commit, run_amorgs, worktree
+from amorgs.checkout import (
+    check_blas_core,
+    environment_at,
+    fingerprints_at,
+    is_reachable,
+    repository_root,
+    resolve_commit,
+    run_amorgs,
+    worktree,
+)
 from amorgs.config import load_config
 from amorgs.data.io import write_json
 from amorgs.errors import InputError
 from amorgs.reference import CONFIG_COPY, STARTS_FILE, starts_identity, verify_reference
+from amorgs.solvers.codegen import cache_dir
 from amorgs.tracking import git_state, package_versions
 
 #: The registry of every committed reference's route, relative to the repository root.
@@ -204,7 +214,7 @@ def _resolve_sample(dst: Path, manifest: dict, starts: pd.DataFrame, sample: int
 
 
 def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers: int = 1,
-                      at_commit: str | None = None) -> dict:
+                      at_commit: str | None = None, blas_core: str | None = None) -> dict:
     """The reproducibility certificate of the committed reference ``dest`` (files checked against its manifest
     first).  Its recorded identity (registry entry, else its provenance) is compared with the code that would
     re-solve it:
@@ -213,10 +223,11 @@ def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers
       naming both codes — nothing is re-solved.
     * ``at_commit`` a commit (``"recorded"``: the registry's): a temporary worktree of it, whose solver must have
       the recorded fingerprints (``InputError`` otherwise: the environment changed), runs that commit's own
-      ``amorgs reference-certify``.
+      ``amorgs reference-certify``, with numpy's OpenBLAS forced to the kernel set ``blas_core`` (None: the one
+      recorded for the reference, if any) — code older than 2026-12-05 built its NLP with numpy's BLAS.
 
-    Returns the certificate (:func:`_resolve_sample`'s keys plus ``route``, ``code_commit``, ``nlp_fingerprints``
-    and ``environment``); ``exact`` says whether every re-solve matched bit for bit."""
+    Returns the certificate (:func:`_resolve_sample`'s keys plus ``route``, ``code_commit``, ``nlp_fingerprints``,
+    ``environment`` and, at a commit, ``blas_core``); ``exact`` says whether every re-solve matched bit for bit."""
     dst = Path(dest)
     manifest = verify_reference(dst)
     starts = _read_starts(dst)
@@ -246,23 +257,30 @@ def certify_reference(dest: str | Path, sample: int = 20, seed: int = 0, workers
     if not commit:
         raise InputError(f"{dst}: no commit recorded to certify at; name one: --at-commit COMMIT")
     commit = resolve_commit(commit, dst.parent)
+    core = (entry or {}).get("blas_core", "") if blas_core is None else blas_core
+    if core:
+        check_blas_core(core)
     with worktree(commit, dst.parent) as tree:
-        there = fingerprints_at(tree, alphas, config=dst / CONFIG_COPY)
+        # Its own compile cache per (commit, kernel set): code before 2026-12-03 keyed its compiled NLPs without
+        # their constants, so an NLP compiled under one kernel set would be loaded under another.
+        env = environment_at(tree, core, cache_dir() / "commits" / f"{commit[:12]}-{core or 'auto'}")
+        there = fingerprints_at(tree, alphas, config=dst / CONFIG_COPY, env=env)
         if "nlp_fingerprints" in recorded:
             diff = _differences(recorded, there)
             if diff:
                 raise InputError(f"{dst}: commit {commit[:12]} here gives other bits than recorded ({'; '.join(diff)}; "
-                                 f"environment here: {there['environment']}) — the environment changed")
+                                 f"environment here: {there['environment']}) — the environment changed"
+                                 + ("" if core else "; name the BLAS kernel set it was made with (--blas-core)"))
         with tempfile.TemporaryDirectory(prefix="amorgs-cert-") as tmp:
             output = Path(tmp) / "certificate.json"
             run = run_amorgs(tree, ["reference-certify", str(dst.resolve()), "--sample", str(sample), "--seed",
-                                    str(seed), "--workers", str(workers), "--output", str(output)])
+                                    str(seed), "--workers", str(workers), "--output", str(output)], env=env)
             if not output.is_file():
                 last = (run.stderr.strip().splitlines() or run.stdout.strip().splitlines() or ["no output"])[-1]
                 raise InputError(f"{dst}: the certificate at commit {commit[:12]} failed: {last}")
             cert = json.loads(output.read_text())
     return {**cert, "reference": str(dst), "route": "commit", "code_commit": commit, "nlp_fingerprints": there["nlp_fingerprints"],
-            "environment": there["environment"]}
+            "environment": there["environment"], "blas_core": core}
 
 
 def record_at_commit(dest: str | Path, cert: dict, why: str = "") -> Path:
@@ -273,6 +291,7 @@ def record_at_commit(dest: str | Path, cert: dict, why: str = "") -> Path:
     return record_entry(dest, {
         "route": "commit", "commit": cert["code_commit"], "options_hash": cert["options_hash"],
         "nlp_fingerprints": cert["nlp_fingerprints"], "environment": cert["environment"],
+        **({"blas_core": cert["blas_core"]} if cert.get("blas_core") else {}),
         "recorded": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "certified": f"{cert['matched']} of {cert['sample']} starts exact (seed {cert['seed']})",
         **({"why": why} if why else {})})

