@@ -1,0 +1,185 @@
+"""Global search cells (strategy × sampler × α) and their runtime to the best known trajectory.
+
+A *cell* runs R independent searches (:func:`amorgs.solvers.basin_hopping.search`) of one strategy from one
+sampler's starts at one α, each with its own seeded generator and the same iteration budget.  Its answer is not
+"how many high-quality solutions per iteration" (the ablation's) but "how soon is the funnel bottom reached":
+
+* **best known**: the lowest objective of any verified solution at that α (for the CR3BP −m_f, kg) — the
+  library's and every search's (:func:`best_known`);
+* **runtime to target** δ: the cumulative IPOPT iterations at which a search's best objective first comes within
+  δ of the best known (m_f ≥ best − δ); the *expected runtime* (ERT, the COCO benchmarking platform's aRT) is
+  the iterations spent by all R searches — until success, or the whole budget — per successful search, with a
+  bootstrap interval over searches (:func:`runtime_to_target`);
+* **distinct near-best**: how many η-distinct trajectories (:mod:`amorgs.analysis.diversity`) within δ of the
+  best known the cell found, over all its searches;
+* the runtime ECDF (:func:`runtime_ecdf`): the fraction of (search, δ) pairs reached against iterations.
+
+Strategies (:data:`STRATEGIES`) are registered once here: multi-start never hops; MBH hops per its
+:class:`~amorgs.solvers.basin_hopping.HopSettings`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pandas as pd
+
+from amorgs.analysis.diversity import DiversityParams, diverse_subset
+from amorgs.solvers.basin_hopping import HopSettings, search
+
+#: The strategies: name → what it does (the ``strategy`` column and setting).
+STRATEGIES = {
+    "multistart": "every solve starts from the sampler (never hops)",
+    "mbh": "monotonic basin hopping: hop from the incumbent, restart from the sampler after `patience` misses",
+}
+
+#: Default targets δ: within this much of the best known objective (kg of final mass for the CR3BP).
+DELTAS = (0.1, 0.5, 2.0)
+
+
+def strategy_settings(strategy: str, hops: HopSettings) -> HopSettings:
+    """The hop settings a strategy searches with: ``hops`` for MBH, ``patience = 0`` (never hop) for
+    multi-start; ``ValueError`` for an unknown strategy."""
+    if strategy not in STRATEGIES:
+        raise ValueError(f"strategy {strategy!r}: one of {', '.join(STRATEGIES)}")
+    return hops if strategy == "mbh" else replace(hops, patience=0)
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One global-search cell: ``searches`` searches of ``strategy`` from ``sampler`` at ``alpha``, each with
+    ``budget`` IPOPT iterations; search r's generator is ``default_rng([seed, r])``."""
+
+    sampler: str
+    strategy: str
+    alpha: float
+    searches: int
+    budget: int
+    seed: int
+    hops: HopSettings = HopSettings()
+
+
+def _starts(sample, alpha: float, rng: np.random.Generator, batch: int = 16) -> Callable[[], np.ndarray | None]:
+    """The sampler's guesses one at a time, drawn ``batch`` at a time from ``rng``; None once a finite pool gives
+    no more."""
+    buffer: list[np.ndarray] = []
+    exhausted = False
+
+    def next_start() -> np.ndarray | None:
+        nonlocal exhausted
+        if not buffer and not exhausted:
+            drawn = np.asarray(sample(alpha, batch, rng), float)
+            exhausted = len(drawn) < batch
+            buffer.extend(drawn)
+        return buffer.pop(0) if buffer else None
+
+    return next_start
+
+
+def run_search(cell: Cell, r: int, sample, solve, lower: np.ndarray, upper: np.ndarray,
+               variable_names: tuple[str, ...]) -> tuple[list[dict], list[dict]]:
+    """Search ``r`` of ``cell``: ``sample(alpha, n, rng)`` is the sampler, ``solve(x0, alpha)`` the local solver,
+    the generator ``default_rng([cell.seed, r])`` draws both its starts and its hops.  Returns its event rows
+    (the cell's keys, ``search``, :class:`~amorgs.solvers.basin_hopping.SearchTrace`'s columns and ``stop``) and
+    its feasible solutions (the cell's keys, ``search``, ``event``, ``objective`` and the stored vector as named
+    columns)."""
+    settings = strategy_settings(cell.strategy, cell.hops)
+    keys = {"sampler": cell.sampler, "strategy": cell.strategy, "alpha": cell.alpha}
+    rng = np.random.default_rng([cell.seed, r])
+    trace = search(lambda x0: solve(x0, cell.alpha), _starts(sample, cell.alpha, rng), lower, upper, settings,
+                   cell.budget, rng)
+    events = [{**keys, "search": r, **e, "stop": trace.stop} for e in trace.events]
+    objective = {e["solve"]: e["objective"] for e in trace.events}
+    solutions = [{**keys, "search": r, "event": i, "objective": objective[i], **dict(zip(variable_names, x))}
+                 for i, x in trace.solutions]
+    return events, solutions
+
+
+def run_cell(cell: Cell, sample, solve, lower: np.ndarray, upper: np.ndarray,
+             variable_names: tuple[str, ...]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Every search of ``cell`` in this process (:func:`run_search`), as two tables: events and solutions."""
+    events, solutions = [], []
+    for r in range(cell.searches):
+        e, s = run_search(cell, r, sample, solve, lower, upper, variable_names)
+        events += e
+        solutions += s
+    return pd.DataFrame(events), pd.DataFrame(solutions)
+
+
+def best_known(*objectives: Iterable[float]) -> float:
+    """The lowest finite objective among the given collections (library rows, every search's feasible solutions);
+    NaN if there is none."""
+    values = [v for group in objectives for v in np.asarray(list(group), float).ravel() if math.isfinite(v)]
+    return min(values) if values else math.nan
+
+
+def hit_iterations(events: pd.DataFrame, target: float) -> pd.Series:
+    """Per search (index): the cumulative iterations at which its best objective first reached ``target``
+    (≤), infinity if it never did."""
+    reached = events[events["best_objective"] <= target]
+    first = reached.groupby("search")["cumulative_iterations"].min()
+    return first.astype(float).reindex(sorted(events["search"].unique()), fill_value=math.inf)
+
+
+def expected_runtime(hits: np.ndarray, spent: np.ndarray) -> float:
+    """ERT: iterations spent until success (``hits``, finite) or in all (``spent``, where ``hits`` is infinite),
+    summed over searches, per successful search; infinity without one."""
+    success = np.isfinite(hits)
+    if not success.any():
+        return math.inf
+    return float((np.where(success, hits, spent)).sum() / success.sum())
+
+
+def runtime_to_target(events: pd.DataFrame, best: float, deltas=DELTAS, n_boot: int = 2000,
+                      seed: int = 0) -> pd.DataFrame:
+    """One row per (sampler, strategy, α, δ): searches, successes, success rate, ERT with a percentile bootstrap
+    95 % interval over searches (``n_boot`` resamples, ``default_rng(seed)``; infinite where a resample has no
+    success), the median hit (iterations, over successful searches), ``best_known`` and the target objective."""
+    rows = []
+    for (sampler, strategy, alpha), cell in events.groupby(["sampler", "strategy", "alpha"], sort=True):
+        spent = cell.groupby("search")["cumulative_iterations"].max().sort_index().to_numpy(float)
+        for delta in deltas:
+            hits = hit_iterations(cell, best + delta).to_numpy()
+            rng = np.random.default_rng([seed, int(round(delta * 1000))])
+            picks = rng.integers(0, len(hits), (n_boot, len(hits)))
+            boot = np.array([expected_runtime(hits[p], spent[p]) for p in picks])
+            ok = np.isfinite(hits)
+            rows.append({
+                "sampler": sampler, "strategy": strategy, "alpha": alpha, "delta": delta, "searches": len(hits),
+                "successes": int(ok.sum()), "success_rate": float(ok.mean()),
+                # Quantiles that pick a resample's value (no interpolation between a finite ERT and infinity).
+                "ert": expected_runtime(hits, spent), "ert_lo": float(np.quantile(boot, 0.025, method="inverted_cdf")),
+                "ert_hi": float(np.quantile(boot, 0.975, method="inverted_cdf")),
+                "median_hit": float(np.median(hits[ok])) if ok.any() else math.inf,
+                "best_known": best, "target": best + delta,
+            })
+    return pd.DataFrame(rows)
+
+
+def runtime_ecdf(events: pd.DataFrame, best: float, deltas=DELTAS) -> pd.DataFrame:
+    """The runtime ECDF per (sampler, strategy, α): for each hit of a (search, δ) pair, in order, the fraction of
+    all its (search, δ) pairs reached by then (``iterations``, ``fraction``)."""
+    rows = []
+    for (sampler, strategy, alpha), cell in events.groupby(["sampler", "strategy", "alpha"], sort=True):
+        hits = np.concatenate([hit_iterations(cell, best + d).to_numpy() for d in deltas])
+        finite = np.sort(hits[np.isfinite(hits)])
+        rows += [{"sampler": sampler, "strategy": strategy, "alpha": alpha, "iterations": it,
+                  "fraction": (k + 1) / len(hits)} for k, it in enumerate(finite)]
+    return pd.DataFrame(rows, columns=["sampler", "strategy", "alpha", "iterations", "fraction"])
+
+
+def distinct_near_best(solutions: pd.DataFrame, best: float, deltas=DELTAS,
+                       params: DiversityParams = DiversityParams()) -> pd.DataFrame:
+    """Per (sampler, strategy, α, δ): the feasible solutions within δ of the best known (``near_best``) and the
+    size of an η-distinct subset of them (``distinct``; :func:`~amorgs.analysis.diversity.diverse_subset`)."""
+    rows = []
+    for (sampler, strategy, alpha), cell in solutions.groupby(["sampler", "strategy", "alpha"], sort=True):
+        for delta in deltas:
+            near = cell[cell["objective"] <= best + delta].reset_index(drop=True)
+            distinct = diverse_subset(near, params).size if len(near) else 0
+            rows.append({"sampler": sampler, "strategy": strategy, "alpha": alpha, "delta": delta,
+                         "near_best": len(near), "distinct": int(distinct)})
+    return pd.DataFrame(rows)

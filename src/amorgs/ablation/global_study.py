@@ -1,0 +1,174 @@
+"""A global-search study: cells (strategy × sampler) at one α, their searches spread over worker processes, and
+the tables that answer "how soon is the best known trajectory reached" (:mod:`amorgs.ablation.global_search`).
+
+The library-based samplers (reuse and its kin) draw on the library's high-quality rows at the *training* α: every
+library α except the study's (leave-one-α-out, as the frontier's folds), β-filtered.  The best known objective is
+the lowest of the library's verified rows at the study's α and of every feasible solution the study found
+(``best_known_source`` says which).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+
+import numpy as np
+import pandas as pd
+
+from amorgs.ablation.arms import build_sampler, get_arm
+from amorgs.ablation.global_search import (
+    DELTAS,
+    Cell,
+    best_known,
+    distinct_near_best,
+    run_search,
+    runtime_ecdf,
+    runtime_to_target,
+    strategy_settings,
+)
+from amorgs.alphas import alpha_label
+from amorgs.errors import InputError
+from amorgs.solvers.basin_hopping import HopSettings
+
+
+@dataclass(frozen=True)
+class GlobalStudy:
+    """What a study runs: ``searches`` searches of ``budget`` IPOPT iterations for every (strategy, sampler) at
+    ``alpha``; ``solver`` is the CR3BP solver's options (a mapping); β (kg) selects the library rows the
+    library-based samplers draw on; ``models_dir`` holds the checkpoints of learned samplers."""
+
+    alpha: float
+    samplers: tuple[str, ...] = ("uniform", "nearest_alpha")
+    strategies: tuple[str, ...] = ("multistart", "mbh")
+    searches: int = 30
+    budget: int = 5000
+    seed: int = 0
+    hops: HopSettings = HopSettings()
+    deltas: tuple[float, ...] = DELTAS
+    solver: dict = field(default_factory=lambda: {"max_iter": 1000})
+    min_final_mass_kg: float = 415.0
+    library_dir: str = "data/library"
+    models_dir: str | None = None
+
+    def cells(self) -> list[Cell]:
+        return [Cell(sampler=s, strategy=t, alpha=self.alpha, searches=self.searches, budget=self.budget,
+                     seed=self.seed, hops=self.hops) for t in self.strategies for s in self.samplers]
+
+    def check(self) -> None:
+        """One-line ``InputError`` for a bad setting, before any solve."""
+        for name in self.samplers:
+            try:
+                arm = get_arm(name)
+            except ValueError as exc:
+                raise InputError(f"--samplers: {exc}") from None
+            if (arm.learned or arm.transfer) and self.models_dir is None:
+                raise InputError(f"--samplers {name}: a learned sampler needs --models-dir")
+        for strategy in self.strategies:
+            try:
+                strategy_settings(strategy, self.hops)
+            except ValueError as exc:
+                raise InputError(f"--strategies: {exc}") from None
+        if self.searches < 1 or self.budget < 1:
+            raise InputError("--searches and --budget must be positive")
+
+
+def library_rows(library_dir: str, alpha: float) -> pd.DataFrame:
+    """The library's rows at ``alpha`` (every one, converged or not)."""
+    from amorgs.data.library import read_library
+
+    return read_library(library_dir, "cr3bp", alpha_label(alpha))
+
+
+def training_high_quality(study: GlobalStudy) -> tuple[pd.DataFrame | None, tuple[float, ...] | None]:
+    """The library's high-quality rows at every library α but the study's (None, None when no sampler needs
+    them)."""
+    if not any(get_arm(s).high_quality for s in study.samplers):
+        return None, None
+    from amorgs.data.library import read_library, read_manifest
+
+    manifest = read_manifest(study.library_dir, "cr3bp")
+    if manifest is None:
+        raise InputError(f"{study.library_dir}: no solution library (a library-based sampler needs one)")
+    train = tuple(float(e["alpha"]) for e in manifest["per_alpha"] if alpha_label(e["alpha"]) != alpha_label(study.alpha))
+    if not train:
+        raise InputError(f"{study.library_dir}: no library α besides {study.alpha} to reuse")
+    frames = [read_library(study.library_dir, "cr3bp", alpha_label(a)) for a in train]
+    table = pd.concat(frames, ignore_index=True)
+    hq = table[table["converged"] & (table["m_f"] >= study.min_final_mass_kg)].reset_index(drop=True)
+    return hq, train
+
+
+_WORKER: dict = {}
+
+
+def _init_worker(study: GlobalStudy, high_quality, train_alphas) -> None:
+    for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(key, "1")
+    from amorgs.problems import get_problem
+
+    problem = get_problem("cr3bp")
+    _WORKER.update(problem=problem, solver=problem.make_local_solver(study.solver), samplers={
+        name: build_sampler(name, problem, models_dir=study.models_dir, high_quality=high_quality,
+                            train_alphas=train_alphas) for name in study.samplers})
+
+
+def _search_task(task: tuple[Cell, int]) -> tuple[list[dict], list[dict]]:
+    cell, r = task
+    p = _WORKER["problem"]
+    return run_search(cell, r, _WORKER["samplers"][cell.sampler].sample, _WORKER["solver"].solve, p.lower, p.upper,
+                      p.variable_names)
+
+
+def run_study(study: GlobalStudy, workers: int = 1) -> dict[str, pd.DataFrame]:
+    """Run every search of every cell on ``workers`` spawned processes (each builds its own solver and samplers;
+    results do not depend on the number of workers) and compute the study's tables: ``events``, ``solutions``,
+    ``runtime_to_target``, ``runtime_ecdf``, ``distinct`` and ``best_known`` (one row: objective, m_f, source)."""
+    study.check()
+    hq, train = training_high_quality(study)
+    tasks = [(cell, r) for cell in study.cells() for r in range(cell.searches)]
+    if workers <= 1:
+        _init_worker(study, hq, train)
+        results = [_search_task(t) for t in tasks]
+    else:
+        with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker,
+                                 initargs=(study, hq, train)) as pool:
+            results = list(pool.map(_search_task, tasks))
+    events = pd.DataFrame([e for ev, _ in results for e in ev])
+    solutions = pd.DataFrame([s for _, so in results for s in so])
+    return summarize(study, events, solutions)
+
+
+def summarize(study: GlobalStudy, events: pd.DataFrame, solutions: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """The study's tables from its events and solutions, timed against the best known objective at its α."""
+    library = library_rows(study.library_dir, study.alpha)
+    verified = library[library["converged"]] if len(library) else library
+    found = solutions["objective"] if len(solutions) else []
+    lib_best = best_known(-verified["m_f"]) if len(verified) else np.nan
+    best = best_known([lib_best], found)
+    source = "library" if best == lib_best else "this study"
+    tables = {
+        "events": events,
+        "solutions": solutions,
+        "runtime_to_target": runtime_to_target(events, best, study.deltas, seed=study.seed),
+        "runtime_ecdf": runtime_ecdf(events, best, study.deltas),
+        "distinct": distinct_near_best(solutions, best, study.deltas) if len(solutions) else pd.DataFrame(),
+        "best_known": pd.DataFrame([{"alpha": study.alpha, "objective": best, "m_f": -best, "source": source,
+                                     "library_rows": len(library), "library_best_m_f": -lib_best}]),
+    }
+    return tables
+
+
+def compare(table: pd.DataFrame, by: Sequence[str] = ("strategy", "sampler")) -> pd.DataFrame:
+    """The runtime-to-target table pivoted for reading: one row per δ, a column per (strategy, sampler) with
+    "ERT (lo–hi), successes/searches"."""
+    def cell(row) -> str:
+        if not np.isfinite(row["ert"]):
+            return f"— (0/{row['searches']})"
+        hi = "∞" if not np.isfinite(row["ert_hi"]) else f"{row['ert_hi']:.0f}"
+        return f"{row['ert']:.0f} ({row['ert_lo']:.0f}–{hi}), {row['successes']}/{row['searches']}"
+
+    out = table.assign(name=table[list(by)].astype(str).agg(" × ".join, axis=1), text=table.apply(cell, axis=1))
+    return out.pivot(index="delta", columns="name", values="text")

@@ -1,0 +1,158 @@
+"""Global search strategies over any local solver: multi-start, and monotonic basin hopping (MBH).
+
+MBH (Leary 2000; tuned for low-thrust trajectories by Englander & Englander 2014, whose most robust hops were
+Pareto-distributed; the inner loop of NASA's EMTG) keeps an *incumbent* — the best feasible solution of the
+current run — and repeatedly perturbs it and re-solves: a hop is kept when its solution is feasible (the
+solver's verified ``converged``) and lowers the objective by more than ``min_improvement``; after ``patience``
+hops in a row that do not, the run restarts from the next start of the sampler.  Multi-start is the strategy
+that never hops: every solve starts from the sampler.  Both spend one iteration budget (IPOPT iterations summed
+over every solve, the project's unit of cost), so their traces are comparable with each other and with the
+ablation's cells.
+
+Problem-agnostic (this layer imports no problem): a search gets ``solve(x0) -> SolveRecord``, ``next_start() ->
+x0 or None`` (a sampler's next guess; None when a finite pool is exhausted), the box ``lower``/``upper`` of the
+stored decision vector and a seeded generator.  Hops move every component by ``scale`` × its box width × a draw
+of the hop distribution and clip to the box.  The objective is the solver's (for the CR3BP −m_f in kg, so
+"lower" is "more fuel left").
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from amorgs.solvers.record import SolveRecord
+
+
+def _gaussian(rng: np.random.Generator, size: int, shape: float) -> np.ndarray:
+    return rng.standard_normal(size)
+
+
+def _cauchy(rng: np.random.Generator, size: int, shape: float) -> np.ndarray:
+    return rng.standard_cauchy(size)
+
+
+def _uniform(rng: np.random.Generator, size: int, shape: float) -> np.ndarray:
+    return rng.uniform(-1.0, 1.0, size)
+
+
+def _pareto(rng: np.random.Generator, size: int, shape: float) -> np.ndarray:
+    """Symmetric Pareto (type II, Lomax) with tail index ``shape``: |d| = (1 − u)^(−1/shape) − 1, random sign —
+    mostly small moves with a heavy tail of long jumps (median |d| = 2^(1/shape) − 1 ≈ 0.59 at shape 1.5)."""
+    magnitude = (1.0 - rng.uniform(0.0, 1.0, size)) ** (-1.0 / shape) - 1.0
+    return np.where(rng.uniform(0.0, 1.0, size) < 0.5, -magnitude, magnitude)
+
+
+#: The hop distributions: name → draw(rng, size, shape) of dimensionless steps (multiplied by scale × box width).
+HOP_DISTRIBUTIONS: dict[str, Callable[[np.random.Generator, int, float], np.ndarray]] = {
+    "pareto": _pareto,
+    "cauchy": _cauchy,
+    "gaussian": _gaussian,
+    "uniform": _uniform,
+}
+
+
+@dataclass(frozen=True)
+class HopSettings:
+    """How MBH hops.
+
+    distribution: a key of :data:`HOP_DISTRIBUTIONS`.   scale: step per unit draw, as a fraction of each
+    variable's box width (dimensionless).   shape: the Pareto tail index (the other distributions ignore it).
+    patience: consecutive non-improving hops before the run restarts from the sampler (0: never hop —
+    multi-start).   min_improvement: how much a hop must lower the objective to be kept (objective units: kg
+    for the CR3BP).
+    """
+
+    distribution: str = "pareto"
+    scale: float = 0.02
+    shape: float = 1.5
+    patience: int = 10
+    min_improvement: float = 1e-6
+
+    def __post_init__(self) -> None:
+        if self.distribution not in HOP_DISTRIBUTIONS:
+            raise ValueError(f"hop distribution {self.distribution!r}: one of {', '.join(HOP_DISTRIBUTIONS)}")
+        if not (self.scale > 0 and self.shape > 0 and self.patience >= 0 and self.min_improvement >= 0):
+            raise ValueError(f"hop settings out of range: {self}")
+
+
+def hop(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, settings: HopSettings,
+        rng: np.random.Generator) -> np.ndarray:
+    """``x`` moved by ``settings.scale`` × (upper − lower) × a draw of the hop distribution per component, clipped
+    to the box."""
+    draw = HOP_DISTRIBUTIONS[settings.distribution](rng, x.size, settings.shape)
+    return np.clip(x + settings.scale * (upper - lower) * draw, lower, upper)
+
+
+def improves(record: SolveRecord, incumbent: SolveRecord | None, min_improvement: float) -> bool:
+    """The acceptance rule: a feasible (verified converged) solution with a finite objective that beats the
+    incumbent's by more than ``min_improvement`` (any feasible one when there is no incumbent)."""
+    if not record.converged or not math.isfinite(record.objective):
+        return False
+    return incumbent is None or record.objective < incumbent.objective - min_improvement
+
+
+@dataclass
+class SearchTrace:
+    """One search: a row per solve (``events``: solve, run, kind 'start'/'hop', iterations, cumulative
+    iterations, status, converged, objective, accepted, best objective so far — NaN before the first feasible
+    one) and the stored vectors of its feasible solutions (``solutions``, one row each, in the order found, with
+    their ``event`` index).  ``stop``: 'budget' or 'starts exhausted'."""
+
+    events: list[dict] = field(default_factory=list)
+    solutions: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    stop: str = "budget"
+
+    @property
+    def iterations(self) -> int:
+        return self.events[-1]["cumulative_iterations"] if self.events else 0
+
+    @property
+    def best(self) -> float:
+        """The best feasible objective found (NaN if none)."""
+        return self.events[-1]["best_objective"] if self.events else math.nan
+
+
+def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], np.ndarray | None],
+           lower: np.ndarray, upper: np.ndarray, settings: HopSettings, budget_iterations: int,
+           rng: np.random.Generator) -> SearchTrace:
+    """Run one search until the iterations of its solves reach ``budget_iterations`` (the solve that crosses it
+    counts whole) or the sampler runs out.  ``settings.patience`` = 0 is multi-start."""
+    if budget_iterations <= 0:
+        raise ValueError(f"budget_iterations must be positive, got {budget_iterations}")
+    trace = SearchTrace()
+    incumbent: SolveRecord | None = None
+    best = math.nan
+    misses = 0  # consecutive hops that were not kept
+    run = -1
+    used = 0
+    while used < budget_iterations:
+        restart = incumbent is None or misses >= settings.patience
+        if restart:
+            x0 = next_start()
+            if x0 is None:
+                trace.stop = "starts exhausted"
+                break
+            incumbent, misses, run = None, 0, run + 1
+        else:
+            x0 = hop(np.asarray(incumbent.x, float), lower, upper, settings, rng)
+        record = solve(np.asarray(x0, float))
+        used += int(record.iterations)
+        accepted = improves(record, incumbent, settings.min_improvement)
+        if accepted:
+            incumbent, misses = record, 0
+        elif not restart:
+            misses += 1
+        if record.converged and math.isfinite(record.objective):
+            best = record.objective if math.isnan(best) else min(best, record.objective)
+            trace.solutions.append((len(trace.events), np.asarray(record.x, float).copy()))
+        trace.events.append({
+            "solve": len(trace.events), "run": run, "kind": "start" if restart else "hop",
+            "iterations": int(record.iterations), "cumulative_iterations": used, "status": record.status,
+            "converged": bool(record.converged), "objective": float(record.objective), "accepted": accepted,
+            "best_objective": best,
+        })
+    return trace

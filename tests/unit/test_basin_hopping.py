@@ -1,0 +1,176 @@
+"""Global search (amorgs.solvers.basin_hopping, amorgs.ablation.global_search): the hop distributions, the
+acceptance rule, the search loop on real solves (De Jong's BFGS; one CR3BP search on IPOPT) and the runtime to
+target with its bootstrap interval."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from amorgs.ablation.global_search import (
+    STRATEGIES,
+    Cell,
+    best_known,
+    distinct_near_best,
+    expected_runtime,
+    hit_iterations,
+    run_cell,
+    runtime_ecdf,
+    runtime_to_target,
+    strategy_settings,
+)
+from amorgs.problems import get_problem
+from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, HopSettings, hop, improves, search
+from amorgs.solvers.record import SolveRecord
+
+#: Median of |draw| per distribution (scale-free checks of what each one draws).
+MEDIAN_ABS = {"gaussian": 0.6745, "cauchy": 1.0, "uniform": 0.5, "pareto": 2 ** (1 / 1.5) - 1}
+
+
+@pytest.mark.parametrize("name", sorted(HOP_DISTRIBUTIONS))
+def test_every_hop_distribution_draws_what_it_says_and_stays_in_the_box(name):
+    rng = np.random.default_rng(0)
+    draws = HOP_DISTRIBUTIONS[name](rng, 200_000, 1.5)
+    assert np.median(np.abs(draws)) == pytest.approx(MEDIAN_ABS[name], rel=0.02)
+    assert abs(np.mean(np.sign(draws))) < 0.01  # symmetric
+    lower, upper = np.array([0.0, -1.0, 10.0]), np.array([1.0, 1.0, 20.0])
+    settings = HopSettings(distribution=name, scale=0.5)
+    x = np.array([0.99, 0.0, 10.0])
+    moved = np.array([hop(x, lower, upper, settings, rng) for _ in range(500)])
+    assert np.all(moved >= lower) and np.all(moved <= upper) and np.any(moved != x)
+    again = hop(x, lower, upper, settings, np.random.default_rng(5))
+    np.testing.assert_array_equal(again, hop(x, lower, upper, settings, np.random.default_rng(5)))
+
+
+def test_hop_settings_refuse_what_they_cannot_do():
+    with pytest.raises(ValueError, match="one of pareto"):
+        HopSettings(distribution="levy")
+    with pytest.raises(ValueError, match="out of range"):
+        HopSettings(scale=0.0)
+    with pytest.raises(ValueError, match="one of multistart"):
+        strategy_settings("annealing", HopSettings())
+    assert strategy_settings("multistart", HopSettings(patience=7)).patience == 0
+    assert strategy_settings("mbh", HopSettings(patience=7)).patience == 7
+    assert set(STRATEGIES) == {"multistart", "mbh"}
+
+
+def _record(objective: float, converged: bool = True) -> SolveRecord:
+    return SolveRecord(status="x", converged=converged, solver_success=converged, x=np.zeros(2), objective=objective)
+
+
+def test_a_hop_is_kept_only_when_feasible_and_better_by_more_than_the_threshold():
+    incumbent = _record(-430.0)
+    assert improves(_record(-431.0), incumbent, 1e-6)
+    assert not improves(_record(-430.0), incumbent, 1e-6)  # equal is not better
+    assert not improves(_record(-430.5), incumbent, 1.0)  # better, but by less than the threshold
+    assert not improves(_record(-440.0, converged=False), incumbent, 0.0)  # infeasible
+    assert not improves(_record(math.nan), None, 0.0)
+    assert improves(_record(-400.0), None, 0.0)  # the first feasible one always
+
+
+def test_searches_on_real_solves_follow_the_strategy_and_the_budget():
+    """De Jong's BFGS (milliseconds per solve): multi-start never hops; MBH hops from a feasible incumbent, keeps
+    only improvements, restarts after `patience` misses; the best objective never rises; the budget stops it;
+    the same seed gives the same trace."""
+    problem = get_problem("dejong")
+    solver = problem.make_local_solver(None)
+
+    def run(strategy: str, seed: int, budget: int = 600):
+        rng = np.random.default_rng(seed)
+        starts = iter(problem.sample_uniform(0.3, 1000, np.random.default_rng(seed + 1)))
+        settings = strategy_settings(strategy, HopSettings(distribution="cauchy", scale=0.2, patience=3))
+        return search(lambda x: solver.solve(x, 0.3), lambda: next(starts, None), problem.lower, problem.upper,
+                      settings, budget, rng)
+
+    multi, mbh = run("multistart", 0), run("mbh", 0)
+    assert {e["kind"] for e in multi.events} == {"start"}
+    kinds = [e["kind"] for e in mbh.events]
+    assert "hop" in kinds and kinds[0] == "start"
+    for trace in (multi, mbh):
+        best = [e["best_objective"] for e in trace.events if not math.isnan(e["best_objective"])]
+        assert best and all(b2 <= b1 for b1, b2 in zip(best, best[1:]))
+        assert trace.iterations >= 600 and trace.iterations - trace.events[-1]["iterations"] < 600
+        assert trace.stop == "budget"
+        assert len(trace.solutions) == sum(e["converged"] for e in trace.events)
+    # A run ends after exactly `patience` hops in a row that were not kept (the last run: at most that many).
+    events = pd.DataFrame(mbh.events)
+    last = events["run"].max()
+    for run_id, run_events in events.groupby("run"):
+        hops = run_events[run_events["kind"] == "hop"]["accepted"].tolist()
+        tail = len(hops) - (max(i for i, kept in enumerate(hops) if kept) + 1 if any(hops) else 0)
+        feasible_start = bool(run_events["converged"].iloc[0])
+        assert tail <= 3 and (run_id == last or tail == (3 if feasible_start else 0))
+    accepted_hops = events[(events["kind"] == "hop") & events["accepted"]]
+    assert len(accepted_hops) >= 1
+    assert [e["objective"] for e in run("mbh", 0).events] == [e["objective"] for e in mbh.events]
+    one_start = iter([problem.upper - 1.0])
+    exhausted = search(lambda x: solver.solve(x, 0.3), lambda: next(one_start, None), problem.lower, problem.upper,
+                       HopSettings(patience=0), 10_000, np.random.default_rng(0))
+    assert exhausted.stop == "starts exhausted" and len(exhausted.events) == 1
+
+
+def test_one_cr3bp_mbh_cell_on_ipopt():
+    """A real CR3BP cell (α = 1, two searches, 800 iterations each, uniform starts): events and feasible
+    solutions line up, every kept hop improved m_f, and the metrics read it."""
+    problem = get_problem("cr3bp")
+    solver = problem.make_local_solver({"max_iter": 300})
+    cell = Cell(sampler="uniform", strategy="mbh", alpha=1.0, searches=2, budget=800, seed=3,
+                hops=HopSettings(scale=0.01, patience=4))
+    events, solutions = run_cell(cell, problem.sample_uniform, solver.solve, problem.lower, problem.upper,
+                                 problem.variable_names)
+    assert set(events["search"]) == {0, 1} and (events.groupby("search")["cumulative_iterations"].max() >= 800).all()
+    assert len(solutions) == int(events["converged"].sum()) >= 1
+    np.testing.assert_allclose(solutions["objective"], -solutions["m_f"], rtol=0, atol=1e-9)
+    for _, run_events in events.groupby(["search", "run"]):
+        kept = run_events[run_events["accepted"]]["objective"].to_numpy()
+        assert np.all(np.diff(kept) < 0)  # each kept solution beats the one before it in its run
+    best = best_known(solutions["objective"])
+    table = runtime_to_target(events, best, deltas=(0.5, 50.0), n_boot=200)
+    assert (table.loc[table["delta"] == 50.0, "successes"] >= 1).all()
+    near = distinct_near_best(solutions, best, deltas=(50.0,))
+    assert int(near["distinct"].iloc[0]) >= 1 and int(near["near_best"].iloc[0]) >= int(near["distinct"].iloc[0])
+
+
+def test_runtime_to_target_is_the_expected_runtime_with_a_bootstrap_interval():
+    """Three searches of budget 100: search 0 reaches the target at 30, search 1 at 60, search 2 never (it spent
+    100): ERT = (30 + 60 + 100) / 2 = 95."""
+    rows = []
+    for s, trace in enumerate([[(10, -1.0), (30, -5.0), (100, -5.0)], [(60, -4.95), (100, -5.0)],
+                               [(50, -2.0), (100, -3.0)]]):
+        rows += [{"sampler": "uniform", "strategy": "mbh", "alpha": 1.0, "search": s, "cumulative_iterations": it,
+                  "best_objective": b} for it, b in trace]
+    events = pd.DataFrame(rows)
+    assert list(hit_iterations(events, -4.9)) == [30.0, 60.0, math.inf]
+    assert expected_runtime(np.array([30.0, 60.0, math.inf]), np.array([100.0, 100.0, 100.0])) == 95.0
+    assert expected_runtime(np.array([math.inf]), np.array([100.0])) == math.inf
+    table = runtime_to_target(events, -5.0, deltas=(0.1, 10.0), n_boot=500, seed=1)
+    tight = table[table["delta"] == 0.1].iloc[0]
+    assert tight["ert"] == 95.0 and tight["successes"] == 2 and tight["success_rate"] == pytest.approx(2 / 3)
+    assert tight["ert_lo"] <= 95.0 <= tight["ert_hi"] and tight["median_hit"] == 45.0
+    loose = table[table["delta"] == 10.0].iloc[0]
+    assert loose["successes"] == 3 and loose["ert"] == pytest.approx((10 + 60 + 50) / 3)
+    ecdf = runtime_ecdf(events, -5.0, deltas=(0.1, 10.0))
+    assert list(ecdf["iterations"]) == [10, 30, 50, 60, 60] and ecdf["fraction"].iloc[-1] == pytest.approx(5 / 6)
+    assert best_known([-1.0, math.nan], [-3.0]) == -3.0 and math.isnan(best_known([math.nan]))
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--samplers", "bogus"], "--samplers: unknown sampler 'bogus'"),
+    (["--strategies", "annealing"], "--strategies: strategy 'annealing'"),
+    (["--hop", "levy"], "--hop: hop distribution 'levy'"),
+    (["--samplers", "amorgs"], "--samplers amorgs: a learned sampler needs --models-dir"),
+    (["--budget", "0"], "--searches and --budget must be positive"),
+    (["--dest", "/proc/x"], "--dest /proc/x: cannot write there"),
+])
+def test_the_global_search_command_refuses_bad_input_in_one_line(args, says, tmp_path):
+    import subprocess
+    import sys
+
+    dest = [] if "--dest" in args else ["--dest", str(tmp_path)]
+    out = subprocess.run([sys.executable, "-m", "amorgs", "global-search", "--alpha", "1.0", *dest, *args],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode != 0 and says in out.stderr, out.stderr
+    assert len(out.stderr.strip().splitlines()) <= 2
