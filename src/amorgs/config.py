@@ -43,6 +43,7 @@ from amorgs.models.names import CR3BP_PRESETS, DEJONG_PRESETS
 from amorgs.problems import FAMILIES
 from amorgs.problems.cr3bp import Cr3bpFilter
 from amorgs.problems.dejong import DejongFilter
+from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, STRATEGIES
 from amorgs.solvers.options import BfgsOptions, IpoptOptions
 
 #: The generated JSON Schema, relative to the repository root (the working directory of workflow and CLI).
@@ -345,6 +346,40 @@ class Transfer(Section):
         return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
 
 
+class GlobalSearch(Section):
+    """Global search at the CR3BP test α (issue 41): per (test α, strategy, sampler) one job running ``searches``
+    seeded searches of ``budget`` IPOPT iterations each — multi-start, or monotonic basin hopping from the
+    sampler's starts (hops of ``hop_distribution`` × ``hop_scale`` of each variable's box width, Pareto tail
+    ``hop_shape``; a restart after ``patience`` hops that do not improve m_f) — with the CR3BP solver options;
+    then the report: expected iterations to come within each of ``deltas_kg`` of the best known m_f, with
+    bootstrap intervals (``ablation.n_boot``), the runtime ECDF and the distinct near-best trajectories.  The
+    best known is the best verified m_f at that α of the run's searches and of the solution library."""
+
+    enabled: Flag = False
+    samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)] = (  # type: ignore[valid-type]
+        "uniform", "nearest_alpha")
+    strategies: Annotated[tuple[Literal[tuple(STRATEGIES)], ...], Field(min_length=1)] = (  # type: ignore[valid-type]
+        "multistart", "mbh")
+    searches: PositiveInt = 30
+    budget: Annotated[int, Field(ge=1, description="IPOPT iterations per search")] = 5000
+    deltas_kg: Annotated[tuple[Annotated[float, Field(gt=0)], ...], Field(min_length=1, description=(
+        "targets: within δ kg of the best known m_f"))] = (0.1, 0.5, 2.0)
+    hop_distribution: Literal[tuple(HOP_DISTRIBUTIONS)] = "pareto"  # type: ignore[valid-type]
+    hop_scale: Annotated[float, Field(gt=0, le=1, description="hop step per unit draw, fraction of the box width")] = 0.02
+    hop_shape: Annotated[float, Field(gt=0, description="tail index of the Pareto hops")] = 1.5
+    patience: PositiveInt = 10
+    seed: Seed = 23
+    workers: PositiveInt = 1
+    mem_mb: PositiveInt = 4000
+    runtime_min: PositiveInt = 120
+
+    _unique_lists = field_validator("samplers", "strategies", "deltas_kg")(_unique)
+
+    def job(self) -> Job:
+        """The resources of one cell job: ``workers`` threads, ``mem_mb`` MB, ``runtime_min`` minutes."""
+        return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
+
+
 class Config(Section):
     """The whole workflow configuration, every default that of the main job (2 cores: the README's time);
     ``seed`` is the base of every derived seed."""
@@ -358,6 +393,7 @@ class Config(Section):
     cr3bp_models: Cr3bpModels = Cr3bpModels()
     ablation: Ablation = Ablation()
     transfer: Transfer = Transfer()
+    global_search: GlobalSearch = GlobalSearch()
 
     @property
     def hash(self) -> str:
@@ -387,10 +423,10 @@ class Config(Section):
             raise ValueError("dejong_cvae.enabled needs problems.dejong.enabled: true")
         if self.dejong_cvae.enabled and not dejong.alphas.test:
             raise ValueError("dejong_cvae.enabled needs test α in problems.dejong.alphas.test")
-        for key in ("cr3bp_analysis", "cr3bp_models", "ablation", "transfer"):
+        for key in ("cr3bp_analysis", "cr3bp_models", "ablation", "transfer", "global_search"):
             if getattr(self, key).enabled and not cr3bp.enabled:
                 raise ValueError(f"{key}.enabled needs problems.cr3bp.enabled: true")
-        for key in ("cr3bp_models", "ablation"):
+        for key in ("cr3bp_models", "ablation", "global_search"):
             if getattr(self, key).enabled and not cr3bp.alphas.test:
                 raise ValueError(f"{key}.enabled needs test α in problems.cr3bp.alphas.test")
         learned = [s for s in self.ablation.samplers if get_arm(s).learned]
@@ -404,6 +440,13 @@ class Config(Section):
         if self.ablation.enabled and needs_transfer and not self.transfer.enabled:
             raise ValueError(f"ablation.samplers {needs_transfer} need transfer.enabled: true (their selector learns "
                              "from the transfer data)")
+        gs = self.global_search
+        learned = [s for s in gs.samplers if get_arm(s).learned]
+        if gs.enabled and learned and not self.cr3bp_models.enabled:
+            raise ValueError(f"global_search.samplers {learned} need cr3bp_models.enabled: true")
+        needs_transfer = [s for s in gs.samplers if get_arm(s).transfer]
+        if gs.enabled and needs_transfer and not self.transfer.enabled:
+            raise ValueError(f"global_search.samplers {needs_transfer} need transfer.enabled: true")
         if self.transfer.enabled and len(cr3bp.alphas.train_values()) < 2:
             raise ValueError("transfer.enabled needs at least 2 α in problems.cr3bp.alphas.train (pairs of them)")
         return self

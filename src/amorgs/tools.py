@@ -41,6 +41,8 @@ EXAMPLES = {
     "frontier-plan": "amorgs frontier-plan --config config/frontier.yaml --runs-dir results/frontier/runs --loo 0.1 0.5 1.0 "
     "--sparse 3 5",
     "frontier": "amorgs frontier results/frontier/runs/*/ --dest results/frontier",
+    "global-search": "amorgs global-search --alpha 0.3 --searches 30 --budget 10000 --workers 2 "
+    "--dest results/global-search/alpha=0.300",
     "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
     "  amorgs reference-export --dest reference/study --check                      # verify the committed files",
     "reference-certify": "amorgs reference-certify reference/frontier/sparse-3 --sample 20 --seed 0   # exit 1: a re-solve differs\n"
@@ -206,8 +208,8 @@ def cmd_global_search(args: argparse.Namespace) -> None:
         with atomic_path(dest / name) as tmp:
             tmp.write_text(text)
     best = tables["best_known"].iloc[0]
-    fig = fig_runtime_ecdf(tables["runtime_ecdf"], tables["runtime_to_target"], float(best["m_f"]), study.deltas,
-                           study.budget)
+    fig = fig_runtime_ecdf(tables["runtime_ecdf"], tables["runtime_to_target"], {study.alpha: float(best["m_f"])},
+                           study.deltas, study.budget)
     fig.savefig(dest / "fig_runtime_ecdf.png", dpi=130)
     print(f"α = {study.alpha:g}: best known m_f {best['m_f']:.3f} kg ({best['source']}); ERT in IPOPT iterations "
           f"(95 % bootstrap), successes/searches:")
@@ -490,6 +492,7 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_frontier)
 
     p = sub.add_parser("global-search", help="time global search strategies × samplers to the best known trajectory",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
                        description="R seeded searches per (strategy, sampler) at one α, each with the same budget of\n"
                                    "IPOPT iterations: multi-start, or monotonic basin hopping from the sampler's starts.\n"
                                    "Reports the expected iterations to come within δ of the best known m_f (library\n"

@@ -240,6 +240,13 @@ def test_smoke_workflow_tracks_every_job(tmp_path):
         f"figures/{n}.png" for n in layout.ABLATION_FIGURES
     }
     assert "AmorGS" in (wd / "results" / "tables" / "table6.md").read_text()
+    # global search (issue 41): every (strategy, sampler) cell ran its searches; the report logged the ECDF figure
+    assert child("global_search_cell", alpha="0.850", strategy="mbh", sampler="nearest_alpha").data.metrics["solves"] >= 1
+    search_report = child("global_search_report")
+    assert {a.path for a in client.list_artifacts(search_report.info.run_id, "figures")} == {
+        f"figures/{layout.GLOBAL_SEARCH_FIGURE}.png"}
+    assert {f"success_rate/alpha_0.850/{t}/{s}/delta_10kg" for t in ("mbh", "multistart")
+            for s in ("uniform", "nearest_alpha")} <= set(search_report.data.metrics)
 
     res = snakemake(wd, "--report", "report.html", "--configfile", "config/smoke.yaml")
     assert res.returncode == 0, res.stderr[-3000:]

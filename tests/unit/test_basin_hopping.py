@@ -11,7 +11,6 @@ import pandas as pd
 import pytest
 
 from amorgs.ablation.global_search import (
-    STRATEGIES,
     Cell,
     best_known,
     distinct_near_best,
@@ -23,7 +22,7 @@ from amorgs.ablation.global_search import (
     strategy_settings,
 )
 from amorgs.problems import get_problem
-from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, HopSettings, hop, improves, search
+from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, STRATEGIES, HopSettings, hop, improves, search
 from amorgs.solvers.record import SolveRecord
 
 #: Median of |draw| per distribution (scale-free checks of what each one draws).

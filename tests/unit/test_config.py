@@ -245,9 +245,11 @@ def test_hash_is_stable_and_sensitive():
 #: paper c153d2360a23 (no solver options changed).
 #: Bounded training (issue 40 §3) added max_rows_per_alpha, validation_fraction and patience (off by default) to
 #: every effective config, and default.yaml turned them on: before, default 2285aed86c5b, smoke 5beeb5860437,
-#: study 99f6bcf284ca, study-paper f446678cf96d, paper a7edb7f1dc16.
-HASHES = {"default": "2535374921a9", "smoke": "bb702dabd54e", "study": "b393108e152d",
-          "study-paper": "9b7c46269e8b", "paper": "760b6dc0b88d"}
+#: study 99f6bcf284ca, study-paper f446678cf96d, paper a7edb7f1dc16.  The section ``global_search`` (issue 41:
+#: off by default, on in smoke) added its keys: before it default 2535374921a9, smoke bb702dabd54e, study
+#: b393108e152d, study-paper 9b7c46269e8b, paper 760b6dc0b88d (no solver options changed).
+HASHES = {"default": "f61716c79ea5", "smoke": "1c40e8eb10ab", "study": "bb7a4260417f",
+          "study-paper": "e8fbdaac91eb", "paper": "e364e2d15142"}
 
 
 @pytest.mark.parametrize("name", HASHES)
@@ -304,8 +306,10 @@ def test_jobs_and_targets_follow_the_enabled_stages(tmp_path):
     assert ("ablation_cell_fraction", {"fraction": "0.1", "alpha": "0.850", "sampler": "amorgs"}) in jobs
     assert ("filter", {"problem": "cr3bp"}) in jobs and ("analyze_cr3bp", {}) in jobs
     assert sum(rule == "ablation_cell" for rule, _ in jobs) == len(cfg.problems.cr3bp.alphas.test) * len(cfg.ablation.samplers)
+    assert ("global_search_cell", {"alpha": "0.850", "strategy": "mbh", "sampler": "nearest_alpha"}) in jobs
+    assert "results/figures/fig_global_search_ecdf.png" in targets
     data = mapping()
-    for key in ("cr3bp_analysis", "cr3bp_models", "ablation", "transfer"):
+    for key in ("cr3bp_analysis", "cr3bp_models", "ablation", "transfer", "global_search"):
         data[key]["enabled"] = False
     data["problems"]["cr3bp"]["enabled"] = False
     off = C.load_config(write(tmp_path, data, "dejong_only.yaml"))
@@ -320,3 +324,23 @@ def test_beta_beyond_what_a_transfer_can_keep_is_refused_naming_the_key(tmp_path
     data["problems"]["cr3bp"]["filter"]["min_final_mass_kg"] = beta
     said = _error(tmp_path, data)
     assert "problems.cr3bp.filter" in said and "lies outside [0, 451.9] kg" in said
+
+
+@pytest.mark.parametrize("change, says", [
+    ({"strategies": ["annealing"]}, "global_search.strategies"),
+    ({"hop_distribution": "levy"}, "global_search.hop_distribution"),
+    ({"deltas_kg": [0.0]}, "global_search.deltas_kg"),
+    ({"samplers": ["uniform", "uniform"]}, "global_search.samplers"),
+])
+def test_a_bad_global_search_setting_is_refused_naming_the_key(tmp_path, change, says):
+    data = mapping()
+    data["global_search"] = {"enabled": True, **change}
+    assert says in _error(tmp_path, data)
+
+
+def test_global_search_with_a_learned_sampler_needs_the_models(tmp_path):
+    data = mapping()
+    data["global_search"] = {"enabled": True, "samplers": ["amorgs"]}
+    data["cr3bp_models"]["enabled"] = False
+    data["ablation"]["enabled"] = False
+    assert "global_search.samplers ['amorgs'] need cr3bp_models.enabled: true" in _error(tmp_path, data)

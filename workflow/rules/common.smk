@@ -16,6 +16,7 @@ from snakemake_interface_executor_plugins.settings import DeploymentMethod
 
 from amorgs import layout, lifeline, steps
 from amorgs.ablation.arms import SAMPLER_NAMES
+from amorgs.solvers.basin_hopping import STRATEGIES
 from amorgs.config import load_workflow_config
 from amorgs.errors import ConfigError, InputError
 from amorgs.data.library import library_files as _library_files
@@ -52,6 +53,7 @@ wildcard_constraints:
     sampler="|".join(SAMPLER_NAMES),
     mseed=r"\d+",
     source=r"\d+\.\d{3}",
+    strategy="|".join(STRATEGIES),
 
 
 # The one command of every rule.
@@ -138,6 +140,13 @@ def finish_tracking(status):
         from amorgs import tracking
 
         tracking.finish_invocation(status)
+
+
+def global_search_cell_inputs(wildcards):
+    """What a global-search cell's {sampler} draws on (as an ablation cell: amorgs.steps.global_search)."""
+    from amorgs.steps.global_search import search_cell_inputs
+
+    return search_cell_inputs(wildcards.sampler, wildcards)
 
 
 def ablation_cell_inputs(wildcards, model_template=layout.CR3BP_MODEL):

@@ -14,7 +14,7 @@ sampler's starts at one α, each with its own seeded generator and the same iter
   best known the cell found, over all its searches;
 * the runtime ECDF (:func:`runtime_ecdf`): the fraction of (search, δ) pairs reached against iterations.
 
-Strategies (:data:`STRATEGIES`) are registered once here: multi-start never hops; MBH hops per its
+Strategies (:data:`~amorgs.solvers.basin_hopping.STRATEGIES`) are registered once: multi-start never hops; MBH hops per its
 :class:`~amorgs.solvers.basin_hopping.HopSettings`.
 """
 
@@ -28,13 +28,7 @@ import numpy as np
 import pandas as pd
 
 from amorgs.analysis.diversity import DiversityParams, diverse_subset
-from amorgs.solvers.basin_hopping import HopSettings, search
-
-#: The strategies: name → what it does (the ``strategy`` column and setting).
-STRATEGIES = {
-    "multistart": "every solve starts from the sampler (never hops)",
-    "mbh": "monotonic basin hopping: hop from the incumbent, restart from the sampler after `patience` misses",
-}
+from amorgs.solvers.basin_hopping import STRATEGIES, HopSettings, search
 
 #: Default targets δ: within this much of the best known objective (kg of final mass for the CR3BP).
 DELTAS = (0.1, 0.5, 2.0)

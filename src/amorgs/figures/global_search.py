@@ -11,24 +11,35 @@ from matplotlib.figure import Figure
 from amorgs.ablation.arms import arm_label
 
 
-def fig_runtime_ecdf(ecdf: pd.DataFrame, cells: pd.DataFrame, best_m_f: float, deltas, budget: int) -> Figure:
-    """One step curve per (strategy, sampler) of ``cells`` (columns strategy, sampler; a cell with no hit is
-    drawn flat at 0): solid for basin hopping, dashed for multi-start; x logarithmic up to ``budget``."""
-    fig = Figure(figsize=(7.5, 4.6), layout="constrained")
-    ax = fig.subplots()
-    for k, (strategy, sampler) in enumerate(cells[["strategy", "sampler"]].drop_duplicates().itertuples(index=False)):
-        mine = ecdf[(ecdf["strategy"] == strategy) & (ecdf["sampler"] == sampler)].sort_values("iterations")
-        x = np.r_[1.0, mine["iterations"].to_numpy(float), budget]
-        y = np.r_[0.0, mine["fraction"].to_numpy(float), mine["fraction"].iloc[-1] if len(mine) else 0.0]
-        ax.step(x, y, where="post", color=f"C{k % 10}", linestyle="-" if strategy == "mbh" else "--",
-                label=f"{'MBH' if strategy == 'mbh' else 'multi-start'} · {arm_label(sampler)}")
-    ax.set_xscale("log")
-    ax.set_xlim(10, budget)
-    ax.set_ylim(0, 1)
-    ax.set_xlabel("IPOPT iterations (cumulative, per search)")
-    ax.set_ylabel("fraction of (search, δ) pairs reached")
+def fig_runtime_ecdf(ecdf: pd.DataFrame, cells: pd.DataFrame, best_m_f: dict[float, float], deltas,
+                     budget: int) -> Figure:
+    """One panel per α of ``best_m_f`` (α → best known m_f, kg), one step curve per (strategy, sampler) of
+    ``cells`` (columns alpha, strategy, sampler; a cell with no hit is drawn flat at 0): solid for basin hopping,
+    dashed for multi-start, one colour per sampler; x logarithmic to the budget (IPOPT iterations) or the latest
+    hit beyond it."""
+    alphas = sorted(best_m_f)
+    fig = Figure(figsize=(7.5, 4.4 * len(alphas)), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(alphas), 1, squeeze=False).ravel())
     targets = ", ".join(f"{d:g}" for d in deltas)
-    ax.set_title(f"Runtime to within δ ∈ {{{targets}}} kg of the best known m_f = {best_m_f:.2f} kg", fontsize=10)
-    ax.legend(fontsize=8, loc="upper left")
-    ax.grid(alpha=0.3, which="both")
+    # A search's last solve may cross its budget: the axis ends at the latest hit or the budget.
+    right = max([float(budget), *ecdf["iterations"].astype(float)]) * 1.05
+    for ax, alpha in zip(axes, alphas):
+        here = cells[cells["alpha"] == alpha][["strategy", "sampler"]].drop_duplicates()
+        colours = {name: f"C{k % 10}" for k, name in enumerate(dict.fromkeys(here["sampler"]))}
+        for strategy, sampler in here.itertuples(index=False):
+            mine = ecdf[(ecdf["alpha"] == alpha) & (ecdf["strategy"] == strategy) & (ecdf["sampler"] == sampler)]
+            mine = mine.sort_values("iterations")
+            x = np.r_[1.0, mine["iterations"].to_numpy(float), right]
+            y = np.r_[0.0, mine["fraction"].to_numpy(float), mine["fraction"].iloc[-1] if len(mine) else 0.0]
+            ax.step(x, y, where="post", color=colours[sampler], linestyle="-" if strategy == "mbh" else "--",
+                    label=f"{'MBH' if strategy == 'mbh' else 'multi-start'} · {arm_label(sampler)}")
+        ax.set_xscale("log")
+        ax.set_xlim(10, right)
+        ax.set_ylim(0, 1)
+        ax.set_xlabel("IPOPT iterations (cumulative, per search)")
+        ax.set_ylabel("fraction of (search, δ) pairs reached")
+        ax.set_title(f"α = {alpha:g} N: runtime to within δ ∈ {{{targets}}} kg of the best known m_f = "
+                     f"{best_m_f[alpha]:.2f} kg", fontsize=10)
+        ax.legend(fontsize=8, loc="upper left")
+        ax.grid(alpha=0.3, which="both")
     return fig

@@ -55,6 +55,13 @@ HOP_DISTRIBUTIONS: dict[str, Callable[[np.random.Generator, int, float], np.ndar
 }
 
 
+#: The search strategies, registered once: name → what it does (the ``strategy`` column, setting and wildcard).
+STRATEGIES = {
+    "multistart": "every solve starts from the sampler (never hops)",
+    "mbh": "monotonic basin hopping: hop from the incumbent, restart from the sampler after `patience` misses",
+}
+
+
 @dataclass(frozen=True)
 class HopSettings:
     """How MBH hops.
