@@ -39,8 +39,8 @@ ABLATION_SUMMARY = "results/cr3bp/ablation/summary.json"
 GLOBAL_SEARCH_EVENTS = "results/cr3bp/global_search/alpha={alpha}/{strategy}-{sampler}.events.parquet"
 GLOBAL_SEARCH_SOLUTIONS = "results/cr3bp/global_search/alpha={alpha}/{strategy}-{sampler}.solutions.parquet"
 GLOBAL_SEARCH_SUMMARY = "results/cr3bp/global_search/summary.json"
-GLOBAL_SEARCH_TABLES = ("global_search_runtime.csv", "global_search_runtime.md", "global_search_ecdf.csv",
-                        "global_search_distinct.csv", "global_search_best_known.csv")
+GLOBAL_SEARCH_TABLES = ("global_search_runtime.csv", "global_search_runtime.md", "global_search_ratios.csv",
+                        "global_search_ecdf.csv", "global_search_distinct.csv", "global_search_best_known.csv")
 GLOBAL_SEARCH_FIGURE = "fig_global_search_ecdf"
 #: Transfer data (issue 38): high-quality solutions of training α {source} solved at training α {alpha}.
 TRANSFER_SHARD = "results/{problem}/transfer/alpha={alpha}/from={source}/shard-{shard}.parquet"

@@ -202,7 +202,7 @@ def cmd_global_search(args: argparse.Namespace) -> None:
         write_parquet(tables[name], dest / f"{name}.parquet")
     readable = compare(tables["runtime_to_target"])
     texts = {f"{name}.csv": tables[name].to_csv(index=False)
-             for name in ("runtime_to_target", "runtime_ecdf", "distinct", "best_known")}
+             for name in ("runtime_to_target", "runtime_ecdf", "ert_ratios", "distinct", "best_known")}
     texts["runtime_to_target.md"] = readable.to_markdown() + "\n"
     for name, text in texts.items():
         with atomic_path(dest / name) as tmp:
@@ -214,8 +214,8 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     print(f"α = {study.alpha:g}: best known m_f {best['m_f']:.3f} kg ({best['source']}); ERT in IPOPT iterations "
           f"(95 % bootstrap), successes/searches:")
     print(readable.to_string())
-    print(f"{dest}: events.parquet, solutions.parquet, runtime_to_target.{{csv,md}}, runtime_ecdf.csv, distinct.csv, "
-          "best_known.csv, fig_runtime_ecdf.png")
+    print(f"{dest}: events.parquet, solutions.parquet, runtime_to_target.{{csv,md}}, runtime_ecdf.csv, "
+          "ert_ratios.csv, distinct.csv, best_known.csv, fig_runtime_ecdf.png")
 
 
 def cmd_ui(args: argparse.Namespace) -> None:

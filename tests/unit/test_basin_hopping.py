@@ -173,3 +173,21 @@ def test_the_global_search_command_refuses_bad_input_in_one_line(args, says, tmp
                          capture_output=True, text=True, timeout=120)
     assert out.returncode != 0 and says in out.stderr, out.stderr
     assert len(out.stderr.strip().splitlines()) <= 2
+
+
+def test_the_ert_ratio_to_the_baseline_has_an_interval_that_tells_faster_from_not():
+    """Two cells of 20 searches: the fast one reaches the target at 100 iterations every time, the baseline at
+    1000 in half of its searches (the other half spend 2000): ERT 100 vs (10·1000 + 10·2000)/10 = 3000."""
+    from amorgs.ablation.global_search import ert_ratios
+
+    rows = []
+    for s in range(20):
+        rows.append({"strategy": "mbh", "sampler": "uniform", "alpha": 1.0, "search": s,
+                     "cumulative_iterations": 100, "best_objective": -10.0})
+        hit = s % 2 == 0
+        rows.append({"strategy": "multistart", "sampler": "uniform", "alpha": 1.0, "search": s,
+                     "cumulative_iterations": 1000 if hit else 2000, "best_objective": -10.0 if hit else -1.0})
+    table = ert_ratios(pd.DataFrame(rows), -10.0, deltas=(0.5,), n_boot=400).set_index("strategy")
+    assert table.loc["mbh", "ratio"] == pytest.approx(100 / 3000)
+    assert table.loc["mbh", "ratio_hi"] < 1  # significantly faster
+    assert table.loc["multistart", "ratio"] == 1.0 and table.loc["multistart", "ratio_lo"] <= 1 <= table.loc["multistart", "ratio_hi"]

@@ -130,7 +130,13 @@ def run_report(job: Job, run) -> None:
     use_agg()
     import pandas as pd
 
-    from amorgs.ablation.global_search import best_known, distinct_near_best, runtime_ecdf, runtime_to_target
+    from amorgs.ablation.global_search import (
+        best_known,
+        distinct_near_best,
+        ert_ratios,
+        runtime_ecdf,
+        runtime_to_target,
+    )
     from amorgs.ablation.global_study import compare
     from amorgs.data.io import atomic_path, write_json
     from amorgs.figures.global_search import fig_runtime_ecdf
@@ -138,7 +144,7 @@ def run_report(job: Job, run) -> None:
     s: SearchReportSettings = job.settings
     events = pd.concat([pd.read_parquet(p) for p in job.input["events"]], ignore_index=True)
     solutions = pd.concat([pd.read_parquet(p) for p in job.input["solutions"]], ignore_index=True)
-    runtime, ecdf, distinct, best_rows, metrics = [], [], [], [], {}
+    runtime, ratios, ecdf, distinct, best_rows, metrics = [], [], [], [], [], {}
     for alpha, cell_events in events.groupby("alpha"):
         found = solutions[solutions["alpha"] == alpha] if len(solutions) else solutions
         library = _library_best(s.library_path, alpha)
@@ -149,6 +155,8 @@ def run_report(job: Job, run) -> None:
                           "library_best_m_f": -library})
         table = runtime_to_target(cell_events, best, s.deltas_kg, n_boot=s.n_boot, seed=s.seed)
         runtime.append(table)
+        ratios.append(ert_ratios(cell_events, best, s.deltas_kg, baseline=_baseline(cell_events), n_boot=s.n_boot,
+                                 seed=s.seed))
         ecdf.append(runtime_ecdf(cell_events, best, s.deltas_kg))
         if len(found):
             distinct.append(distinct_near_best(found, best, s.deltas_kg))
@@ -160,7 +168,8 @@ def run_report(job: Job, run) -> None:
     best_m_f = {r["alpha"]: r["best_m_f"] for r in best_rows}
     figures = {layout.GLOBAL_SEARCH_FIGURE: fig_runtime_ecdf(pd.concat(ecdf, ignore_index=True), runtime_all,
                                                               best_m_f, s.deltas_kg, s.budget)}
-    tables = {"global_search_runtime.csv": runtime_all, "global_search_ecdf.csv": pd.concat(ecdf, ignore_index=True),
+    tables = {"global_search_runtime.csv": runtime_all, "global_search_ratios.csv": pd.concat(ratios, ignore_index=True),
+              "global_search_ecdf.csv": pd.concat(ecdf, ignore_index=True),
               "global_search_distinct.csv": pd.concat(distinct, ignore_index=True) if distinct else pd.DataFrame(
                   {"status": ["no feasible solution"]}),
               "global_search_best_known.csv": pd.DataFrame(best_rows)}
@@ -177,6 +186,13 @@ def run_report(job: Job, run) -> None:
         run.log_artifact(path, "tables")
     write_figures(figures, job.output["figures"], run)
     print(f"{job.output['summary']}: {len(runtime_all)} (cell, δ) rows over {events['alpha'].nunique()} α")
+
+
+def _baseline(events) -> tuple[str, str]:
+    """The cell every other is divided by: multi-start from uniform starts where the run has it, else the first
+    (strategy, sampler) of the run."""
+    cells = sorted(set(zip(events["strategy"], events["sampler"])))
+    return ("multistart", "uniform") if ("multistart", "uniform") in cells else cells[0]
 
 
 def _library_best(library_path: str, alpha: float) -> float:
