@@ -197,7 +197,19 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     study = GlobalStudy(alpha=args.alpha, samplers=tuple(args.samplers), strategies=tuple(args.strategies),
                         searches=args.searches, budget=args.budget, seed=args.seed, hops=hops, deltas=tuple(args.deltas),
                         solver={"max_iter": args.max_iter}, library_dir=args.library_dir, models_dir=args.models_dir)
-    tables = run_study(study, args.workers)
+    if args.from_events:
+        import pandas as pd
+
+        from amorgs.ablation.global_study import summarize
+
+        source = Path(args.from_events)
+        missing = [n for n in ("events.parquet", "solutions.parquet") if not (source / n).is_file()]
+        if missing:
+            raise InputError(f"--from-events {source}: no {' or '.join(missing)} (a finished global-search --dest)")
+        tables = summarize(study, pd.read_parquet(source / "events.parquet"),
+                           pd.read_parquet(source / "solutions.parquet"))
+    else:
+        tables = run_study(study, args.workers)
     for name in ("events", "solutions"):
         write_parquet(tables[name], dest / f"{name}.parquet")
     readable = compare(tables["runtime_to_target"])
@@ -514,6 +526,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--library-dir", default="data/library", help="the solution library (reuse arms, best known)")
     p.add_argument("--models-dir", default=None, help="checkpoints of learned samplers (e.g. data/models/cr3bp)")
     p.add_argument("--dest", default="results/global-search", help="where the tables and the figure go")
+    p.add_argument("--from-events", default=None, metavar="DIR",
+                   help="no solves: recompute the tables and the figure from a finished study's events.parquet and "
+                        "solutions.parquet in DIR (with this code's statistics)")
     p.set_defaults(func=cmd_global_search)
 
     p = sub.add_parser("ui", help="open the MLflow UI on results/mlflow")

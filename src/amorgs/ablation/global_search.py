@@ -182,7 +182,7 @@ def ert_ratios(events: pd.DataFrame, best: float, deltas=DELTAS, baseline: tuple
                     ratios = boot / base_boot
                 finite = ratios[~np.isnan(ratios)]
                 lo, hi = ((float(np.quantile(finite, q, method="inverted_cdf")) for q in (0.025, 0.975))
-                          if len(finite) else (math.nan, math.nan))
+                          if len(finite) and np.isfinite(base) else (math.nan, math.nan))
                 rows.append({"alpha": alpha, "delta": delta, "strategy": strategy, "sampler": sampler,
                              "baseline": " × ".join(baseline), "ratio": ratio, "ratio_lo": lo, "ratio_hi": hi})
     return pd.DataFrame(rows)
