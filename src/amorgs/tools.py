@@ -143,13 +143,19 @@ def cmd_design(args: argparse.Namespace) -> None:
         alpha=args.alpha, n=args.n, sampler=args.sampler, beta_kg=args.beta, eta=args.eta, seed=args.seed,
         workers=args.workers, round_size=args.round_size, max_starts=args.max_starts, max_cpu_s=args.max_cpu_s,
         library_dir=args.library_dir, models_dir=args.models_dir, config=args.config,
-        frontier=tuple(args.frontier) if args.frontier else DEFAULT_FRONTIERS,
+        frontier=tuple(args.frontier) if args.frontier else DEFAULT_FRONTIERS, strategy=args.strategy, hop=args.hop,
+        hop_scale=args.hop_scale, hop_shape=args.hop_shape, patience=args.patience,
     )
     result, paths = run_design(request, args.output, track=not args.no_mlflow, store_dir=args.mlflow_dir,
                                progress=not args.quiet)
     out = paths["reports"][0].parent
     print(f"{out}: {len(result.selected)} of {args.n} solutions (α = {args.alpha:g} N, m_f ≥ {args.beta:g} kg, "
           f"η = {args.eta:g}) from {result.starts} starts, {result.cpu_s:.0f} CPU s, {result.wall_s:.0f} s wall")
+    known = result.info.get("best_known_m_f_kg")
+    if known is not None and len(result.selected):
+        gaps = ", ".join(f"{g:.3f}" for g in result.selected["below_best_known_kg"])
+        print(f"best known m_f at α = {args.alpha:g}: {known:.3f} kg ({result.info['best_known_source']}); the "
+              f"returned solutions are {gaps} kg below it ({args.strategy})")
     if result.found < args.n:
         print(f"amorgs design: only {result.found} of {args.n} found before the budget ran out "
               f"({result.stop_reason}); raise --max-starts / --max-cpu-s or lower -n", file=sys.stderr)
@@ -455,6 +461,13 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                         "(default 0.02 ≈ 0.8 TU of τ_s or 0.3 TU of τ_i, τ_f)")
     p.add_argument("--seed", type=int, default=0, help="seed of the warm starts; same seed, same result (default 0)")
     p.add_argument("--workers", type=int, default=2, help="solver processes (default 2)")
+    p.add_argument("--strategy", default="multistart", choices=["multistart", "mbh"],
+                   help="multistart: every start from the sampler; mbh: monotonic basin hopping, each slot of a round "
+                        "a chain hopping from its best solution (docs/global-search.md)")
+    p.add_argument("--hop", default="pareto", help="mbh: hop distribution (pareto, cauchy, gaussian, uniform)")
+    p.add_argument("--hop-scale", type=float, default=0.02, help="mbh: hop step per unit draw, fraction of the box")
+    p.add_argument("--hop-shape", type=float, default=1.5, help="mbh: Pareto tail index")
+    p.add_argument("--patience", type=int, default=10, help="mbh: hops without improvement before a restart")
     p.add_argument("--round-size", type=int, default=16,
                    help="starts solved per round; the stop criteria are checked between rounds (default 16)")
     p.add_argument("--max-starts", type=int, default=400, help="budget: at most this many solves (default 400)")

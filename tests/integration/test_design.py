@@ -149,6 +149,25 @@ def test_same_seed_same_solutions_with_one_worker(designed):
     assert list(result.selected["start"]) == list(pd.read_parquet(designed["out"] / "solutions.parquet")["start"])
 
 
+def test_basin_hopping_spends_its_budget_and_says_how_far_from_the_best_known(tmp_path):
+    """`--strategy mbh`: chains hop from their best solutions (kind 'hop'), the whole budget is spent though n were
+    found in the first round, a kept hop improved its chain, and every returned solution says how far below the
+    best known m_f at α it is (≥ 0); the same seed gives the same solves with one worker."""
+    from amorgs.design import DesignRequest, design
+
+    request = DesignRequest(alpha=ALPHA, n=2, round_size=4, max_starts=16, workers=1, seed=SEED, strategy="mbh",
+                            patience=2)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.chdir(REPO)
+        result, again = design(request), design(request)
+    solves = result.solves
+    assert result.starts == 16 and result.stop_reason == "max_starts"
+    assert set(solves["kind"]) == {"start", "hop"} and (solves["kind"].iloc[:4] == "start").all()
+    assert (result.selected["below_best_known_kg"] >= 0).all() and result.info["best_known_m_f_kg"] >= solves.loc[
+        solves["converged"], "m_f"].max()
+    pd.testing.assert_frame_equal(result.solves[["kind", "iterations", "m_f"]], again.solves[["kind", "iterations", "m_f"]])
+
+
 @pytest.mark.parametrize(
     "args, names",
     [
@@ -165,6 +184,9 @@ def test_same_seed_same_solutions_with_one_worker(designed):
         (["--alpha", "0.42", "-n", "3", "--frontier", "nope.csv"], "--frontier nope.csv: no such file"),
         (["--alpha", "0.42", "-n", "3", "--output", "data/library/cr3bp/x"], "inside the solution library"),
         (["--alpha", "0.42", "-n", "3", "--sampler", "reuse_cvae"], "reuse_cvae.pt: model checkpoint not found"),
+        # issue 41: the basin-hopping strategy's settings
+        (["--alpha", "0.42", "-n", "3", "--strategy", "mbh", "--hop", "levy"], "--hop/--hop-scale"),
+        (["--alpha", "0.42", "-n", "3", "--strategy", "mbh", "--hop-scale", "0"], "--hop/--hop-scale"),
     ],
 )
 def test_bad_input_is_one_line_without_traceback(args, names, tmp_path):

@@ -191,3 +191,30 @@ def test_the_ert_ratio_to_the_baseline_has_an_interval_that_tells_faster_from_no
     assert table.loc["mbh", "ratio"] == pytest.approx(100 / 3000)
     assert table.loc["mbh", "ratio_hi"] < 1  # significantly faster
     assert table.loc["multistart", "ratio"] == 1.0 and table.loc["multistart", "ratio_lo"] <= 1 <= table.loc["multistart", "ratio_hi"]
+
+
+def test_chains_advance_a_round_at_a_time_by_the_search_rule():
+    """Three De Jong chains: the first round restarts all from the sampler; a chain with a feasible incumbent hops
+    next; `patience` misses in a row restart it; a kept hop resets its misses."""
+    from amorgs.solvers.basin_hopping import Chains
+
+    problem = get_problem("dejong")
+    solver = problem.make_local_solver(None)
+    chains = Chains(3, HopSettings(distribution="gaussian", scale=0.01, patience=2))
+    rng = np.random.default_rng(0)
+    fresh = lambda m: problem.sample_uniform(0.3, m, rng)  # noqa: E731
+    guesses, kinds = chains.propose(fresh, problem.lower, problem.upper, rng)
+    assert kinds == ["start"] * 3 and guesses.shape == (3, 2)
+    records = [solver.solve(x, 0.3) for x in guesses]
+    assert chains.update(records, kinds) == [r.converged for r in records]
+    for _ in range(6):
+        before = list(chains.misses)
+        had = [inc is not None for inc in chains.incumbents]
+        guesses, kinds = chains.propose(fresh, problem.lower, problem.upper, rng, size=2)
+        assert len(kinds) == 2
+        for i, kind in enumerate(kinds):
+            assert kind == ("hop" if had[i] and before[i] < 2 else "start")
+        kept = chains.update([solver.solve(x, 0.3) for x in guesses], kinds)
+        for i, kind in enumerate(kinds):
+            if kind == "hop":
+                assert chains.misses[i] == (0 if kept[i] else before[i] + 1)

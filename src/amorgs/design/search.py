@@ -79,6 +79,12 @@ class DesignRequest:
     library_dir: the solution library (seeds of the library-based samplers; training α only, β-filtered
     with the config's filter β).   models_dir: checkpoints of the learned samplers.
     config: the config file giving the solver options, the training α, the filter β and the sampler options.
+    strategy: ``multistart`` (every start from the sampler) or ``mbh`` (monotonic basin hopping: each of the
+    ``round_size`` slots of a round is a chain that hops from its best solution and restarts from the sampler
+    after ``patience`` hops that do not improve it; :mod:`amorgs.solvers.basin_hopping`) — which spends the whole
+    budget (``max_starts``, ``max_cpu_s``) looking for the best, then returns the n best η-diverse.   hop, hop_scale,
+    hop_shape, patience: the hops of ``mbh`` (distribution, step per unit draw as a fraction of the box width,
+    Pareto tail, misses before a restart).
     """
 
     alpha: float
@@ -95,6 +101,17 @@ class DesignRequest:
     models_dir: str = DEFAULT_MODELS_DIR
     config: str = DEFAULT_CONFIG
     frontier: tuple[str, ...] | str = DEFAULT_FRONTIERS  # one table or several, read together
+    strategy: str = "multistart"
+    hop: str = "pareto"
+    hop_scale: float = 0.02
+    hop_shape: float = 1.5
+    patience: int = 10
+
+    def hops(self):
+        """The :class:`~amorgs.solvers.basin_hopping.HopSettings` of ``mbh``."""
+        from amorgs.solvers.basin_hopping import HopSettings
+
+        return HopSettings(distribution=self.hop, scale=self.hop_scale, shape=self.hop_shape, patience=self.patience)
 
     def check(self) -> None:
         """One :class:`ConfigError` naming the option for every out-of-range value (β against the problem's
@@ -123,6 +140,14 @@ class DesignRequest:
             raise ConfigError(f"--max-starts {self.max_starts}: the budget must allow at least 1 start")
         if not (self.max_cpu_s > 0 and not math.isnan(self.max_cpu_s)):
             raise ConfigError(f"--max-cpu-s {self.max_cpu_s}: the CPU budget must be > 0 seconds")
+        from amorgs.solvers.basin_hopping import STRATEGIES
+
+        if self.strategy not in STRATEGIES:
+            raise ConfigError(f"--strategy {self.strategy!r}: choose one of {', '.join(STRATEGIES)}")
+        try:
+            self.hops()
+        except ValueError as exc:
+            raise ConfigError(f"--hop/--hop-scale/--hop-shape/--patience: {exc}") from None
 
 
 @dataclass
@@ -168,6 +193,23 @@ class DesignResult:
             "m_f_best_kg": float(self.selected["m_f"].max()) if len(self.selected) else None,
             **self.info,
         }
+
+
+def best_known(library_dir: str | Path, alpha: float, solves: pd.DataFrame) -> dict:
+    """The best verified m_f known at ``alpha`` (kg): the library's (its manifest's per-α best, where ``alpha`` is
+    a library α) or this search's converged solves', whichever is higher, and which it was."""
+    from amorgs.data.library import read_manifest
+
+    manifest = read_manifest(library_dir, PROBLEM) or {}
+    library = [-float(e["best_objective"]) for e in manifest.get("per_alpha", [])
+               if alpha_label(e["alpha"]) == alpha_label(alpha) and e.get("best_objective") is not None]
+    conv = solves[solves["converged"].astype(bool)] if len(solves) else solves
+    here = float(conv["m_f"].max()) if len(conv) else -math.inf
+    lib = library[0] if library else -math.inf
+    if not math.isfinite(max(lib, here)):
+        return {"best_known_m_f_kg": None, "best_known_source": "none"}
+    return {"best_known_m_f_kg": max(lib, here), "best_known_source": "library" if lib >= here else "this search",
+            "library_best_m_f_kg": lib if math.isfinite(lib) else None}
 
 
 def _cpu_seconds() -> float:
@@ -492,12 +534,17 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
 
             request = replace(request, sampler=info["sampler"])
         rng = np.random.default_rng(request.seed)
+        chains = None
+        if request.strategy == "mbh":
+            from amorgs.solvers.basin_hopping import Chains
+
+            chains = Chains(request.round_size, request.hops())
 
         def cpu_s() -> float:  # this process, the workers that ended, and the live ones so far
             return _cpu_seconds() - cpu0 + pool.cpu_seconds()
 
         while True:
-            if found >= request.n:
+            if found >= request.n and chains is None:  # mbh searches its whole budget for the funnel bottom
                 stop_reason = "found"
             elif starts >= request.max_starts:
                 stop_reason = "max_starts"
@@ -506,13 +553,20 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
             if stop_reason:
                 break
             size = min(request.round_size, request.max_starts - starts)
-            guesses = sampler.sample(request.alpha, size, rng)
+            if chains is None:
+                guesses, kinds = sampler.sample(request.alpha, size, rng), ["start"] * size
+            else:
+                guesses, kinds = chains.propose(lambda m: sampler.sample(request.alpha, m, rng), problem.lower,
+                                                problem.upper, rng, size)
             records, run_info = pool.solve(request.alpha, guesses, progress=False, started=started)
             started = None
+            if chains is not None:
+                chains.update(records, kinds)
             table = records_table(PROBLEM, request.alpha, request.seed, guesses, records, problem.variable_names,
                                   run_info["options_hash"])
             table["start"] += starts
             table.insert(int(table.columns.get_loc("seed")) + 1, "shard", rounds)
+            table.insert(int(table.columns.get_loc("shard")) + 1, "kind", kinds)
             tables.append(table)
             starts += size
             rounds += 1
@@ -529,6 +583,9 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
         keep = solves["converged"].astype(bool) & (solves["m_f"] >= request.beta_kg)
         solves["high_quality"] = keep.to_numpy()
         solves["selected"] = solves["start"].isin(selected["start"]) if len(selected) else False
+    info.update(best_known(request.library_dir, request.alpha, solves))
+    if len(selected):  # how far each chosen trajectory is from the best known at this α (kg, ≥ 0)
+        selected = selected.assign(below_best_known_kg=info["best_known_m_f_kg"] - selected["m_f"])
     return DesignResult(
         request=request,
         selected=selected,

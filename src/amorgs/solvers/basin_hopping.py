@@ -163,3 +163,46 @@ def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], 
             "best_objective": best,
         })
     return trace
+
+
+class Chains:
+    """``k`` MBH chains advanced a round at a time: each round proposes one start per chain — the sampler's next
+    start for a chain with no feasible incumbent or ``patience`` misses in a row, else a hop from its incumbent —
+    and takes the round's solves back in the same order (:meth:`update`).  The rule of :func:`search`, for a
+    caller that solves a round's starts in parallel (``amorgs design --strategy mbh``)."""
+
+    def __init__(self, k: int, settings: HopSettings):
+        self.settings = settings
+        self.incumbents: list[SolveRecord | None] = [None] * k
+        self.misses = [0] * k
+
+    def propose(self, fresh: Callable[[int], np.ndarray], lower: np.ndarray, upper: np.ndarray,
+                rng: np.random.Generator, size: int | None = None) -> tuple[np.ndarray, list[str]]:
+        """The starts of the first ``size`` chains (default all) and their kinds ('start'/'hop'):
+        ``fresh(m)`` draws the m restarts (called once, before the hops draw from ``rng``)."""
+        size = len(self.incumbents) if size is None else size
+        restart = [self.incumbents[i] is None or self.misses[i] >= self.settings.patience for i in range(size)]
+        drawn = iter(np.asarray(fresh(sum(restart)), float)) if any(restart) else iter(())
+        guesses, kinds = [], []
+        for i in range(size):
+            if restart[i]:
+                self.incumbents[i], self.misses[i] = None, 0
+                guesses.append(next(drawn))
+                kinds.append("start")
+            else:
+                guesses.append(hop(np.asarray(self.incumbents[i].x, float), lower, upper, self.settings, rng))
+                kinds.append("hop")
+        return np.array(guesses), kinds
+
+    def update(self, records: list[SolveRecord], kinds: list[str]) -> list[bool]:
+        """Each chain's solve of the round (in :meth:`propose`'s order): kept when it improves the incumbent
+        (:func:`improves`); a hop not kept is a miss.  Returns which were kept."""
+        kept = []
+        for i, (record, kind) in enumerate(zip(records, kinds)):
+            accepted = improves(record, self.incumbents[i], self.settings.min_improvement)
+            if accepted:
+                self.incumbents[i], self.misses[i] = record, 0
+            elif kind == "hop":
+                self.misses[i] += 1
+            kept.append(accepted)
+        return kept
