@@ -41,6 +41,7 @@ EXAMPLES = {
     "frontier-plan": "amorgs frontier-plan --config config/frontier.yaml --runs-dir results/frontier/runs --loo 0.1 0.5 1.0 "
     "--sparse 3 5",
     "frontier": "amorgs frontier results/frontier/runs/*/ --dest results/frontier",
+    "best-known": "amorgs best-known --from-library data/library --add results/global-search/solutions.parquet",
     "global-search": "amorgs global-search --alpha 0.3 --searches 30 --budget 10000 --workers 2 "
     "--dest results/global-search/alpha=0.300",
     "reference-export": "amorgs reference-export --config config/study.yaml --dest reference/study   # after the run\n"
@@ -183,6 +184,33 @@ def cmd_frontier(args: argparse.Namespace) -> None:
         print(f"{r.run:>12}  α = {r.alpha:<5g} gap {r.gap:.3g} N ({r.gap_relative:.0%})  {r.sampler}: aRT ÷ reuse "
               f"= {r.ratio_to_reuse:.3g} ({r.ratio_to_reuse_ci95_low:.3g}–{r.ratio_to_reuse_ci95_high:.3g}), n = {r.n}")
     print(f"{args.dest}: {', '.join(OUTPUTS)}")
+
+
+def cmd_best_known(args: argparse.Namespace) -> None:
+    from pathlib import Path
+
+    import pandas as pd
+
+    from amorgs.data import best_known as bk
+    from amorgs.errors import InputError
+    from amorgs.tracking import git_state
+
+    record = bk.read_record(args.record)
+    commit = git_state(Path.cwd())["git_commit"]
+    improved = []
+    if args.from_library:
+        improved += bk.from_library(record, args.from_library, commit)
+    for path in args.add or []:
+        if not Path(path).is_file():
+            raise InputError(f"--add {path}: no such file")
+        table = pd.read_parquet(path) if path.endswith(".parquet") else pd.read_csv(path)
+        improved += bk.add_solutions(record, table, {"kind": "search", "where": str(path), "commit": commit})
+    if improved:
+        bk.save_record(record, args.record)
+    for label, entry in sorted(record["alphas"].items()):
+        mark = " (new)" if label in improved else ""
+        print(f"α = {label}: {entry['m_f_kg']:.3f} kg — {entry['source']['kind']} {entry['source']['where']}{mark}")
+    print(f"{args.record}: {len(set(improved))} α improved" if improved else f"{args.record}: unchanged")
 
 
 def cmd_global_search(args: argparse.Namespace) -> None:
@@ -515,6 +543,17 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--mlflow-dir", default="results/mlflow", help="MLflow store of the aggregation's run")
     p.add_argument("--no-mlflow", action="store_true", help="do not mirror the aggregation to MLflow")
     p.set_defaults(func=cmd_frontier)
+
+    p = sub.add_parser("best-known", help="the best known trajectory per α: show, or raise it from the library or a search",
+                       description="Each α's best verified m_f and the solution holding it (data/best_known/cr3bp.json),\n"
+                                   "the target global searches are timed against; an entry rises only to a solution\n"
+                                   "that passes the independent DOP853 check here.")
+    p.add_argument("--record", default="data/best_known/cr3bp.json", help="the record (JSON)")
+    p.add_argument("--from-library", default=None, metavar="DIR", help="offer each library α's best verified rows")
+    p.add_argument("--add", nargs="+", default=None, metavar="TABLE",
+                   help="offer the best rows of solutions tables (parquet or csv: a global search's solutions.parquet, "
+                        "a design's solutions.parquet)")
+    p.set_defaults(func=cmd_best_known)
 
     p = sub.add_parser("global-search", help="time global search strategies × samplers to the best known trajectory",
                        formatter_class=argparse.RawDescriptionHelpFormatter,

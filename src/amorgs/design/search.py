@@ -195,21 +195,26 @@ class DesignResult:
         }
 
 
-def best_known(library_dir: str | Path, alpha: float, solves: pd.DataFrame) -> dict:
-    """The best verified m_f known at ``alpha`` (kg): the library's (its manifest's per-α best, where ``alpha`` is
-    a library α) or this search's converged solves', whichever is higher, and which it was."""
+def best_known(library_dir: str | Path, alpha: float, solves: pd.DataFrame,
+               record_path: str | Path | None = None) -> dict:
+    """The best verified m_f known at ``alpha`` (kg) and where it is held: the best-known record
+    (:mod:`amorgs.data.best_known`, ``data/best_known/cr3bp.json`` unless ``record_path``), the library's per-α best
+    (its manifest, where ``alpha`` is a library α) or this search's converged solves, whichever is highest."""
+    from amorgs.data import best_known as bk
     from amorgs.data.library import read_manifest
 
     manifest = read_manifest(library_dir, PROBLEM) or {}
     library = [-float(e["best_objective"]) for e in manifest.get("per_alpha", [])
                if alpha_label(e["alpha"]) == alpha_label(alpha) and e.get("best_objective") is not None]
     conv = solves[solves["converged"].astype(bool)] if len(solves) else solves
-    here = float(conv["m_f"].max()) if len(conv) else -math.inf
-    lib = library[0] if library else -math.inf
-    if not math.isfinite(max(lib, here)):
+    record = bk.best_m_f(bk.read_record(record_path or bk.DEFAULT_PATH), alpha)
+    candidates = {"best-known record": record, "library": library[0] if library else math.nan,
+                  "this search": float(conv["m_f"].max()) if len(conv) else math.nan}
+    known = {k: v for k, v in candidates.items() if math.isfinite(v)}
+    if not known:
         return {"best_known_m_f_kg": None, "best_known_source": "none"}
-    return {"best_known_m_f_kg": max(lib, here), "best_known_source": "library" if lib >= here else "this search",
-            "library_best_m_f_kg": lib if math.isfinite(lib) else None}
+    source = max(known, key=known.get)
+    return {"best_known_m_f_kg": known[source], "best_known_source": source}
 
 
 def _cpu_seconds() -> float:

@@ -1,0 +1,132 @@
+"""The best known trajectory per α (issue 41 §1): the target every global search is timed against.
+
+One JSON file per problem (:data:`DEFAULT_PATH` for the CR3BP), keyed by α label::
+
+    {"format": 1, "problem": "cr3bp",
+     "alphas": {"0.300": {"alpha": 0.3, "m_f_kg": 439.38…, "x": [64 numbers, the stored decision vector],
+                          "verify_defect": 7.1e-07, "source": {"kind": "search" | "library", "where": …,
+                          "commit": …}, "recorded": "2026-12-05T…"}}}
+
+An entry changes only to a higher m_f, and only after the solution passes the project's independent check
+here (inside the box, DOP853 re-propagation of the match point within the solver's ``verify_tol``): a row's own
+``converged`` flag is not trusted.  Fed by :func:`from_library` (each α's best verified library row) and by
+:func:`add_solutions` (a search's solutions table: ``amorgs global-search``'s, ``amorgs design``'s), both behind
+``amorgs best-known``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from amorgs.alphas import alpha_label
+from amorgs.data.io import read_json, write_json
+from amorgs.errors import InputError
+
+DEFAULT_PATH = "data/best_known/cr3bp.json"
+PROBLEM = "cr3bp"
+
+
+def read_record(path: str | Path = DEFAULT_PATH) -> dict:
+    """The record (an empty one if the file does not exist yet); ``InputError`` naming a file that is not one."""
+    p = Path(path)
+    if not p.is_file():
+        return {"format": 1, "problem": PROBLEM, "alphas": {}}
+    try:
+        record = read_json(p)
+    except ValueError as exc:
+        raise InputError(f"{p}: not a best-known record ({exc})") from None
+    if not isinstance(record, dict) or record.get("problem") != PROBLEM or "alphas" not in record:
+        raise InputError(f"{p}: not a best-known record of {PROBLEM}")
+    return record
+
+
+def best_m_f(record: dict, alpha: float) -> float:
+    """The recorded best m_f (kg) at ``alpha``; NaN where none is recorded."""
+    entry = record["alphas"].get(alpha_label(alpha))
+    return float(entry["m_f_kg"]) if entry else math.nan
+
+
+def verify(x: np.ndarray, alpha: float, verify_tol: float = 1e-5) -> float:
+    """The independent match defect of the stored vector ``x`` at ``alpha`` (DU, VU, t); ``InputError`` if it
+    lies outside the box or does not close within ``verify_tol``."""
+    from amorgs.problems import get_problem
+    from amorgs.problems.cr3bp.propagation import independent_defect
+
+    problem = get_problem(PROBLEM)
+    if not (np.all(x >= problem.lower) and np.all(x <= problem.upper)):
+        raise InputError(f"α = {alpha:g}: the solution lies outside the decision box")
+    defect = independent_defect(x, alpha, problem.initial_state, problem.terminal_state)
+    if not defect <= verify_tol:
+        raise InputError(f"α = {alpha:g}: the solution does not close (independent defect {defect:.3g} > {verify_tol:g})")
+    return float(defect)
+
+
+def offer(record: dict, alpha: float, x: np.ndarray, source: dict, verify_tol: float = 1e-5) -> bool:
+    """Enter ``x`` (stored layout, m_f = x[3] kg) as the best known at ``alpha`` if it beats the entry there and
+    passes :func:`verify`; returns whether it did.  ``record`` is changed in place."""
+    x = np.asarray(x, float)
+    m_f, current = float(x[3]), best_m_f(record, alpha)
+    if math.isnan(m_f) or (not math.isnan(current) and m_f <= current):
+        return False
+    defect = verify(x, alpha, verify_tol)
+    record["alphas"][alpha_label(alpha)] = {
+        "alpha": float(alpha), "m_f_kg": m_f, "x": x.tolist(), "verify_defect": defect, "source": source,
+        "recorded": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
+    return True
+
+
+def _best_rows(table: pd.DataFrame, names: tuple[str, ...], candidates: int = 5) -> list[tuple[float, np.ndarray]]:
+    """Per α of ``table``: its ``candidates`` highest-m_f rows flagged converged, best first (a row that fails the
+    independent check gives way to the next)."""
+    out = []
+    rows = table[table["converged"].astype(bool)] if "converged" in table else table
+    for alpha, here in rows.groupby("alpha"):
+        top = here.sort_values("m_f", ascending=False).head(candidates)
+        out += [(float(alpha), r) for r in top[list(names)].to_numpy(float)]
+    return out
+
+
+def add_solutions(record: dict, table: pd.DataFrame, source: dict, verify_tol: float = 1e-5) -> list[str]:
+    """Offer every α's best rows of a solutions table (columns ``alpha``, ``m_f``, the stored vector's names,
+    ``converged`` if present); returns the α labels whose entry improved."""
+    from amorgs.problems import get_problem
+
+    names = get_problem(PROBLEM).variable_names
+    missing = [c for c in ("alpha", *names) if c not in table]
+    if missing:
+        raise InputError(f"{source.get('where', 'table')}: not a solutions table (no column {missing[0]!r})")
+    improved = []
+    for alpha, x in _best_rows(table, names):
+        if x[3] <= best_m_f(record, alpha):
+            continue
+        try:
+            if offer(record, alpha, x, source, verify_tol):
+                improved.append(alpha_label(alpha))
+        except InputError:
+            continue  # flagged converged but fails the independent check here: not a best known
+    return sorted(set(improved))
+
+
+def from_library(record: dict, library_dir: str | Path, source_commit: str = "") -> list[str]:
+    """Offer each library α's best verified rows (:func:`add_solutions`); returns the improved α labels."""
+    from amorgs.data.library import read_library, read_manifest
+
+    manifest = read_manifest(library_dir, PROBLEM)
+    if manifest is None:
+        raise InputError(f"{Path(library_dir) / PROBLEM}: no solution library")
+    improved = []
+    for entry in manifest["per_alpha"]:
+        rows = read_library(library_dir, PROBLEM, alpha_label(entry["alpha"]))
+        improved += add_solutions(record, rows, {"kind": "library", "where": str(Path(library_dir) / PROBLEM),
+                                                 "commit": source_commit})
+    return sorted(set(improved))
+
+
+def save_record(record: dict, path: str | Path = DEFAULT_PATH) -> None:
+    """Write the record atomically."""
+    write_json(record, path)
