@@ -39,11 +39,11 @@ from amorgs.ablation.arms import DEFAULT_SAMPLER_NAMES, HEADLINE_ARM, LEARNED_SA
 from amorgs.alphas import alpha_label
 from amorgs.analysis.structure_params import StructureParams
 from amorgs.errors import ConfigError
-from amorgs.models.names import CR3BP_PRESETS, DEJONG_PRESETS
+from amorgs.models.names import CR3BP_PRESETS, DEJONG_PRESETS, PERTURBATION_SCALE
 from amorgs.problems import FAMILIES
 from amorgs.problems.cr3bp import Cr3bpFilter
 from amorgs.problems.dejong import DejongFilter
-from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, STRATEGIES
+from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, STRATEGIES, HopSettings
 from amorgs.solvers.options import BfgsOptions, IpoptOptions
 
 #: The generated JSON Schema, relative to the repository root (the working directory of workflow and CLI).
@@ -301,7 +301,7 @@ class Ablation(Section):
     workers: PositiveInt = 2
     mem_mb: PositiveInt = 4000
     runtime_min: PositiveInt = 60
-    perturbation_scale: Annotated[float, Field(ge=0)] = 0.02  # σ in the box-normalised space
+    perturbation_scale: Annotated[float, Field(ge=0)] = PERTURBATION_SCALE  # σ in the box-normalised space
     gmm_components: PositiveInt = 5  # mixture components per training α
     selection_oversample: PositiveInt = Field(
         5, description="proposals drawn per start by amorgs_selected: the transfer selector solves the best "
@@ -346,6 +346,10 @@ class Transfer(Section):
         return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
 
 
+#: The hop defaults (:class:`~amorgs.solvers.basin_hopping.HopSettings`), the one place they are written.
+HOPS = HopSettings()
+
+
 class GlobalSearch(Section):
     """Global search at the CR3BP test α (issue 41): per (test α, strategy, sampler) one job running ``searches``
     seeded searches of ``budget`` IPOPT iterations each — multi-start, or monotonic basin hopping from the
@@ -364,10 +368,11 @@ class GlobalSearch(Section):
     budget: Annotated[int, Field(ge=1, description="IPOPT iterations per search")] = 5000
     deltas_kg: Annotated[tuple[Annotated[float, Field(gt=0)], ...], Field(min_length=1, description=(
         "targets: within δ kg of the best known m_f"))] = (0.1, 0.5, 2.0)
-    hop_distribution: Literal[tuple(HOP_DISTRIBUTIONS)] = "pareto"  # type: ignore[valid-type]
-    hop_scale: Annotated[float, Field(gt=0, le=1, description="hop step per unit draw, fraction of the box width")] = 0.02
-    hop_shape: Annotated[float, Field(gt=0, description="tail index of the Pareto hops")] = 1.5
-    patience: PositiveInt = 10
+    hop_distribution: Literal[tuple(HOP_DISTRIBUTIONS)] = HOPS.distribution  # type: ignore[valid-type]
+    hop_scale: Annotated[float, Field(gt=0, le=1, description="hop step per unit draw, fraction of the box width")] = (
+        HOPS.scale)
+    hop_shape: Annotated[float, Field(gt=0, description="tail index of the Pareto hops")] = HOPS.shape
+    patience: PositiveInt = HOPS.patience
     seed: Seed = 23
     workers: PositiveInt = 1
     mem_mb: PositiveInt = 4000

@@ -25,7 +25,10 @@ from amorgs.config import SCHEMA_PATH
 from amorgs.models.names import PAPER_MODELS
 from amorgs.problems import PROBLEMS
 from amorgs.problems.cr3bp import BETA_KG
+from amorgs.solvers.basin_hopping import HopSettings
 
+#: The hop defaults of ``design --strategy mbh`` and ``global-search``.
+HOPS = HopSettings()
 #: One example per tool, shown in its ``--help`` epilog.
 EXAMPLES = {
     "library-export": "amorgs library-export --solutions-dir results/library-grow/results/cr3bp/solutions "
@@ -492,10 +495,10 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--strategy", default="multistart", choices=["multistart", "mbh"],
                    help="multistart: every start from the sampler; mbh: monotonic basin hopping, each slot of a round "
                         "a chain hopping from its best solution (docs/global-search.md)")
-    p.add_argument("--hop", default="pareto", help="mbh: hop distribution (pareto, cauchy, gaussian, uniform)")
-    p.add_argument("--hop-scale", type=float, default=0.02, help="mbh: hop step per unit draw, fraction of the box")
-    p.add_argument("--hop-shape", type=float, default=1.5, help="mbh: Pareto tail index")
-    p.add_argument("--patience", type=int, default=10, help="mbh: hops without improvement before a restart")
+    p.add_argument("--hop", default=HOPS.distribution, help="mbh: hop distribution (pareto, cauchy, gaussian, uniform)")
+    p.add_argument("--hop-scale", type=float, default=HOPS.scale, help="mbh: hop step per unit draw, fraction of the box")
+    p.add_argument("--hop-shape", type=float, default=HOPS.shape, help="mbh: Pareto tail index")
+    p.add_argument("--patience", type=int, default=HOPS.patience, help="mbh: hops without improvement before a restart")
     p.add_argument("--round-size", type=int, default=16,
                    help="starts solved per round; the stop criteria are checked between rounds (default 16)")
     p.add_argument("--max-starts", type=int, default=400, help="budget: at most this many solves (default 400)")
@@ -567,10 +570,10 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--searches", type=int, default=30, help="independent searches per cell (default 30)")
     p.add_argument("--budget", type=int, default=5000, help="IPOPT iterations per search (default 5000)")
     p.add_argument("--max-iter", type=int, default=1000, help="IPOPT iteration cap per solve (default 1000)")
-    p.add_argument("--hop", default="pareto", help="hop distribution: pareto, cauchy, gaussian or uniform")
-    p.add_argument("--hop-scale", type=float, default=0.02, help="hop step per unit draw, fraction of the box width")
-    p.add_argument("--hop-shape", type=float, default=1.5, help="Pareto tail index")
-    p.add_argument("--patience", type=int, default=10, help="hops without improvement before a restart")
+    p.add_argument("--hop", default=HOPS.distribution, help="hop distribution: pareto, cauchy, gaussian or uniform")
+    p.add_argument("--hop-scale", type=float, default=HOPS.scale, help="hop step per unit draw, fraction of the box width")
+    p.add_argument("--hop-shape", type=float, default=HOPS.shape, help="Pareto tail index")
+    p.add_argument("--patience", type=int, default=HOPS.patience, help="hops without improvement before a restart")
     p.add_argument("--deltas", type=float, nargs="+", default=[0.1, 0.5, 2.0],
                    help="targets: within δ kg of the best known m_f (default 0.1 0.5 2)")
     p.add_argument("--seed", type=int, default=0, help="seed of the searches and the bootstrap")

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from amorgs.models.names import PERTURBATION_SCALE
+
 #: Roles in the statistics (:mod:`amorgs.ablation.statistics`).  One arm each holds ``baseline``, ``reuse`` and
 #: ``headline``; every other arm is ``compared`` against them.
 ROLES = {
@@ -167,7 +169,7 @@ class ArmInputs:
     models: Mapping[str, Any]
     high_quality: Any = None
     train_alphas: tuple[float, ...] | None = None
-    perturbation_scale: float = 0.02
+    perturbation_scale: float = PERTURBATION_SCALE
     gmm_components: int = 5
     selection_oversample: int = 5
 
@@ -187,7 +189,7 @@ def build_sampler(
     models_dir: str | Path | None = None,
     high_quality=None,
     train_alphas=None,
-    perturbation_scale: float = 0.02,
+    perturbation_scale: float = PERTURBATION_SCALE,
     gmm_components: int = 5,
     selector: str | Path | None = None,
     selection_oversample: int = 5,

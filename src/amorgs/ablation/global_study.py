@@ -32,6 +32,7 @@ from amorgs.ablation.global_search import (
 )
 from amorgs.alphas import alpha_label
 from amorgs.errors import InputError
+from amorgs.problems.cr3bp import BETA_KG
 from amorgs.solvers.basin_hopping import HopSettings
 
 
@@ -50,7 +51,7 @@ class GlobalStudy:
     hops: HopSettings = HopSettings()
     deltas: tuple[float, ...] = DELTAS
     solver: dict = field(default_factory=lambda: {"max_iter": 1000})
-    min_final_mass_kg: float = 415.0
+    min_final_mass_kg: float = BETA_KG
     library_dir: str = "data/library"
     models_dir: str | None = None
 

@@ -47,12 +47,15 @@ from amorgs.analysis.structure_params import ETA
 from amorgs.config import ConfigError
 from amorgs.errors import InputError
 from amorgs.problems.cr3bp import BETA_KG
+from amorgs.solvers.basin_hopping import HopSettings
 from amorgs.solvers.options import IpoptOptions
 
 if TYPE_CHECKING:
     from amorgs.solvers.multistart import WorkerPool
 
 PROBLEM = "cr3bp"
+#: The hop defaults of ``--strategy mbh``.
+HOPS = HopSettings()
 #: Defaults of ``amorgs design`` (see :class:`DesignRequest`).
 #: ``--sampler auto``: the arm the frontier recommends (:func:`resolve_sampler`).
 AUTO_SAMPLER = "auto"
@@ -102,10 +105,10 @@ class DesignRequest:
     config: str = DEFAULT_CONFIG
     frontier: tuple[str, ...] | str = DEFAULT_FRONTIERS  # one table or several, read together
     strategy: str = "multistart"
-    hop: str = "pareto"
-    hop_scale: float = 0.02
-    hop_shape: float = 1.5
-    patience: int = 10
+    hop: str = HOPS.distribution
+    hop_scale: float = HOPS.scale
+    hop_shape: float = HOPS.shape
+    patience: int = HOPS.patience
 
     def hops(self):
         """The :class:`~amorgs.solvers.basin_hopping.HopSettings` of ``mbh``."""

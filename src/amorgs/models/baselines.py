@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from amorgs.alphas import alpha_label, same_alpha
+from amorgs.models.names import PERTURBATION_SCALE
 from amorgs.problems import Problem
 from amorgs.problems.base import check_alpha
 from amorgs.problems.cr3bp.controls import cartesian_controls, spherical_controls
@@ -153,7 +154,8 @@ class NearestAlphaPerturbedSampler(NearestAlphaSampler):
 
     name = "nearest_alpha_perturbed"
 
-    def __init__(self, problem: Problem, high_quality: pd.DataFrame, train_alphas, scale: float = 0.02):
+    def __init__(self, problem: Problem, high_quality: pd.DataFrame, train_alphas,
+                 scale: float = PERTURBATION_SCALE):
         super().__init__(problem, high_quality, train_alphas)
         if not (scale >= 0 and math.isfinite(scale)):
             raise ValueError(f"perturbation scale must be a finite number ≥ 0, got {scale!r}")

@@ -25,3 +25,8 @@ CR3BP_MODELS = (*PAPER_MODELS, "reuse_cvae")
 CHECKPOINTS = {name: f"{name}.pt" for name in CR3BP_MODELS}
 CR3BP_PRESETS = ("paper", "small")
 DEJONG_PRESETS = ("dejong_paper", "small")
+
+
+#: σ of the perturbed reuse arm (``nearest_alpha_perturbed``) in the box-normalised space (dimensionless): its
+#: default in the arm's sampler, the arm inputs and the config (written here once).
+PERTURBATION_SCALE = 0.02
