@@ -63,30 +63,40 @@ def _cell_settings(cfg: Config, w: Wildcards) -> CellSettings:
                         data_fraction=fraction, start_offset=offset)
 
 
-def run_cell(job: Job, run) -> None:
-    from amorgs.ablation.experiment import run_cell as solve_cell
-    from amorgs.data.io import write_parquet
+def cell_sampler(rule: str, job: Job):
+    """The sampler of a cell job's arm (``job.settings.sampler``), built from the job's inputs — the checkpoints
+    it loads, the high-quality table, the transfer selector (:func:`cell_inputs`) — and the settings' training α,
+    σ of the perturbed reuse arm, GMM components and selection oversampling; one line naming ``rule`` and the
+    missing input otherwise.  Ablation and global-search cells build their samplers here."""
     from amorgs.ablation.arms import build_sampler
     from amorgs.problems import get_problem
 
-    s: CellSettings = job.settings
+    s = job.settings
     arm = get_arm(s.sampler)
     models = job.input.get("models", [])
     if arm.high_quality and "high_quality" not in job.input:
-        raise InputError(f"ablation_cell: {s.sampler} needs the high-quality table (input high_quality)")
+        raise InputError(f"{rule}: {s.sampler} needs the high-quality table (input high_quality)")
     if len(models) < len(arm.models):
-        raise InputError(f"ablation_cell: {s.sampler} needs the checkpoints {arm.models} (input models)")
+        raise InputError(f"{rule}: {s.sampler} needs the checkpoints {arm.models} (input models)")
     if arm.transfer and "selector" not in job.input:
-        raise InputError(f"ablation_cell: {s.sampler} needs the transfer selector (input selector)")
+        raise InputError(f"{rule}: {s.sampler} needs the transfer selector (input selector)")
     hq = None
     if arm.high_quality:
         import pandas as pd
 
         hq = pd.read_parquet(job.input["high_quality"])
-    sampler = build_sampler(s.sampler, get_problem("cr3bp"), os.path.dirname(models[0]) if models else None,
-                            high_quality=hq, train_alphas=s.train_alphas, perturbation_scale=s.perturbation_scale,
-                            gmm_components=s.gmm_components, selector=job.input.get("selector"),
-                            selection_oversample=s.selection_oversample)
+    return build_sampler(s.sampler, get_problem("cr3bp"), os.path.dirname(models[0]) if models else None,
+                         high_quality=hq, train_alphas=s.train_alphas, perturbation_scale=s.perturbation_scale,
+                         gmm_components=s.gmm_components, selector=job.input.get("selector"),
+                         selection_oversample=s.selection_oversample)
+
+
+def run_cell(job: Job, run) -> None:
+    from amorgs.ablation.experiment import run_cell as solve_cell
+    from amorgs.data.io import write_parquet
+
+    s: CellSettings = job.settings
+    sampler = cell_sampler("ablation_cell", job)
     df = solve_cell("cr3bp", s.alpha, sampler, s.starts, s.seed, s.solver, job.threads, start_offset=s.start_offset)
     df.insert(2, "model_seed", s.model_seed)
     if s.data_fraction < 1.0:  # a learning-curve cell: its models saw this fraction of the training rows

@@ -12,7 +12,7 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from amorgs import layout
-from amorgs.ablation.arms import SAMPLER_NAMES, get_arm
+from amorgs.ablation.arms import SAMPLER_NAMES
 from amorgs.alphas import alpha_label, metric_key
 from amorgs.config import Config, Section
 from amorgs.data.seeds import cell_seed
@@ -20,7 +20,7 @@ from amorgs.errors import InputError
 from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, STRATEGIES, HopSettings
 from amorgs.solvers.options import IpoptOptions
 from amorgs.steps import Job, Step, Wildcards, once_if, resources_of
-from amorgs.steps.ablation import cell_inputs
+from amorgs.steps.ablation import cell_inputs, cell_sampler
 from amorgs.steps.outputs import finite_metrics, use_agg, write_figures
 
 
@@ -60,25 +60,14 @@ def _cell_settings(cfg: Config, w: Wildcards) -> SearchCellSettings:
 
 
 def run_cell(job: Job, run) -> None:
-    import pandas as pd
-
-    from amorgs.ablation.arms import build_sampler
     from amorgs.ablation.global_search import Cell
     from amorgs.ablation.global_search import run_cell as search_cell
     from amorgs.data.io import write_parquet
     from amorgs.problems import get_problem
 
     s: SearchCellSettings = job.settings
-    arm = get_arm(s.sampler)
-    models = job.input.get("models", [])
-    if arm.high_quality and "high_quality" not in job.input:
-        raise InputError(f"global_search_cell: {s.sampler} needs the high-quality table (input high_quality)")
-    hq = pd.read_parquet(job.input["high_quality"]) if arm.high_quality else None
     problem = get_problem("cr3bp")
-    sampler = build_sampler(s.sampler, problem, os.path.dirname(models[0]) if models else None, high_quality=hq,
-                            train_alphas=s.train_alphas, perturbation_scale=s.perturbation_scale,
-                            gmm_components=s.gmm_components, selector=job.input.get("selector"),
-                            selection_oversample=s.selection_oversample)
+    sampler = cell_sampler("global_search_cell", job)
     cell = Cell(sampler=s.sampler, strategy=s.strategy, alpha=s.alpha, searches=s.searches, budget=s.budget,
                 seed=s.seed, hops=HopSettings(distribution=s.hop_distribution, scale=s.hop_scale, shape=s.hop_shape,
                                               patience=s.patience))
