@@ -310,7 +310,7 @@ def _interrupt_config() -> dict:
     cfg["problems"]["dejong"]["alphas"] = {"train": [0.2], "test": []}
     cfg["problems"]["dejong"]["generate"].update(shards=3, starts_per_shard=30)
     cfg["problems"]["cr3bp"]["enabled"] = False
-    for section in ("dejong_cvae", "cr3bp_analysis", "cr3bp_models", "ablation", "transfer"):
+    for section in ("dejong_cvae", "cr3bp_analysis", "cr3bp_models", "ablation", "transfer", "global_search"):
         cfg[section]["enabled"] = False
     return cfg
 
