@@ -374,15 +374,15 @@ class GlobalSearch(Section):
     hop_shape: Annotated[float, Field(gt=0, description="tail index of the Pareto hops")] = HOPS.shape
     patience: PositiveInt = HOPS.patience
     seed: Seed = 23
-    workers: PositiveInt = 1
     mem_mb: PositiveInt = 4000
     runtime_min: PositiveInt = 120
 
     _unique_lists = field_validator("samplers", "strategies", "deltas_kg")(_unique)
 
     def job(self) -> Job:
-        """The resources of one cell job: ``workers`` threads, ``mem_mb`` MB, ``runtime_min`` minutes."""
-        return Job(threads=self.workers, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
+        """The resources of one cell job (its searches run one after another in one process): one thread,
+        ``mem_mb`` MB, ``runtime_min`` minutes."""
+        return Job(threads=1, mem_mb=self.mem_mb, runtime_min=self.runtime_min)
 
 
 class Config(Section):

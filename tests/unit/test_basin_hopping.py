@@ -218,3 +218,25 @@ def test_chains_advance_a_round_at_a_time_by_the_search_rule():
         for i, kind in enumerate(kinds):
             if kind == "hop":
                 assert chains.misses[i] == (0 if kept[i] else before[i] + 1)
+
+
+def test_a_hit_beyond_the_budget_does_not_count_and_a_rare_success_widens_the_ratio():
+    """Budget 100: a search that reaches the target at 150 (its last solve crossed the budget) failed, and spent
+    100.  A cell that succeeds once in 12 against a baseline that never does has no ratio interval; against a
+    baseline that succeeds once, the resamples where neither succeeds keep the interval wide."""
+    from amorgs.ablation.global_search import ert_ratios
+
+    rows = [{"strategy": "mbh", "sampler": "uniform", "alpha": 1.0, "search": 0, "cumulative_iterations": 150,
+             "best_objective": -10.0}]
+    events = pd.DataFrame(rows)
+    assert list(hit_iterations(events, -9.0, budget=100)) == [math.inf]
+    table = runtime_to_target(events, -10.0, deltas=(1.0,), n_boot=50, budget=100)
+    assert table["successes"].iloc[0] == 0 and table["ert"].iloc[0] == math.inf
+    rows = []
+    for s in range(12):
+        for strategy in ("mbh", "multistart"):
+            hit = s == 0
+            rows.append({"strategy": strategy, "sampler": "uniform", "alpha": 1.0, "search": s,
+                         "cumulative_iterations": 1000, "best_objective": -10.0 if hit else -1.0})
+    ratio = ert_ratios(pd.DataFrame(rows), -10.0, deltas=(0.5,), n_boot=400).set_index("strategy").loc["mbh"]
+    assert ratio["ratio"] == 1.0 and ratio["ratio_lo"] == 0.0 and ratio["ratio_hi"] == math.inf

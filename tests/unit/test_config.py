@@ -248,8 +248,8 @@ def test_hash_is_stable_and_sensitive():
 #: study 99f6bcf284ca, study-paper f446678cf96d, paper a7edb7f1dc16.  The section ``global_search`` (issue 41:
 #: off by default, on in smoke) added its keys: before it default 2535374921a9, smoke bb702dabd54e, study
 #: b393108e152d, study-paper 9b7c46269e8b, paper 760b6dc0b88d (no solver options changed).
-HASHES = {"default": "f61716c79ea5", "smoke": "1c40e8eb10ab", "study": "bb7a4260417f",
-          "study-paper": "e8fbdaac91eb", "paper": "e364e2d15142"}
+HASHES = {"default": "c56031089737", "smoke": "748a4f977337", "study": "1afb23932539",
+          "study-paper": "443d07aa265e", "paper": "6cde77f2a1dd"}
 
 
 @pytest.mark.parametrize("name", HASHES)

@@ -56,7 +56,13 @@ class Cell:
     hops: HopSettings = HopSettings()
 
 
-def _starts(sample, alpha: float, rng: np.random.Generator, batch: int = 16) -> Callable[[], np.ndarray | None]:
+#: Starts drawn per call of a search's sampler: a pooled arm (reuse) permutes its pool afresh at every call, so a
+#: search's starts are distinct as long as it needs no more than this many (a 10 000-iteration search restarts
+#: some tens of times).
+START_BATCH = 256
+
+
+def _starts(sample, alpha: float, rng: np.random.Generator, batch: int = START_BATCH) -> Callable[[], np.ndarray | None]:
     """The sampler's guesses one at a time, drawn ``batch`` at a time from ``rng``; None once a finite pool gives
     no more."""
     buffer: list[np.ndarray] = []
@@ -110,12 +116,18 @@ def best_known(*objectives: Iterable[float]) -> float:
     return min(values) if values else math.nan
 
 
-def hit_iterations(events: pd.DataFrame, target: float) -> pd.Series:
+def hit_iterations(events: pd.DataFrame, target: float, budget: float = math.inf) -> pd.Series:
     """Per search (index): the cumulative iterations at which its best objective first reached ``target``
-    (≤), infinity if it never did."""
-    reached = events[events["best_objective"] <= target]
+    (≤), infinity if it never did within ``budget`` iterations (the solve that crosses the budget runs to its end,
+    but a hit beyond the budget does not count: every strategy gets the same iterations)."""
+    reached = events[(events["best_objective"] <= target) & (events["cumulative_iterations"] <= budget)]
     first = reached.groupby("search")["cumulative_iterations"].min()
     return first.astype(float).reindex(sorted(events["search"].unique()), fill_value=math.inf)
+
+
+def _spent(cell: pd.DataFrame, budget: float) -> np.ndarray:
+    """Per search (sorted): the iterations it spent, at most ``budget``."""
+    return np.minimum(cell.groupby("search")["cumulative_iterations"].max().sort_index().to_numpy(float), budget)
 
 
 def expected_runtime(hits: np.ndarray, spent: np.ndarray) -> float:
@@ -128,15 +140,15 @@ def expected_runtime(hits: np.ndarray, spent: np.ndarray) -> float:
 
 
 def runtime_to_target(events: pd.DataFrame, best: float, deltas=DELTAS, n_boot: int = 2000,
-                      seed: int = 0) -> pd.DataFrame:
+                      seed: int = 0, budget: float = math.inf) -> pd.DataFrame:
     """One row per (sampler, strategy, α, δ): searches, successes, success rate, ERT with a percentile bootstrap
     95 % interval over searches (``n_boot`` resamples, ``default_rng(seed)``; infinite where a resample has no
     success), the median hit (iterations, over successful searches), ``best_known`` and the target objective."""
     rows = []
     for (sampler, strategy, alpha), cell in events.groupby(["sampler", "strategy", "alpha"], sort=True):
-        spent = cell.groupby("search")["cumulative_iterations"].max().sort_index().to_numpy(float)
+        spent = _spent(cell, budget)
         for delta in deltas:
-            hits = hit_iterations(cell, best + delta).to_numpy()
+            hits = hit_iterations(cell, best + delta, budget).to_numpy()
             rng = np.random.default_rng([seed, int(round(delta * 1000))])
             picks = rng.integers(0, len(hits), (n_boot, len(hits)))
             boot = np.array([expected_runtime(hits[p], spent[p]) for p in picks])
@@ -154,7 +166,7 @@ def runtime_to_target(events: pd.DataFrame, best: float, deltas=DELTAS, n_boot: 
 
 
 def ert_ratios(events: pd.DataFrame, best: float, deltas=DELTAS, baseline: tuple[str, str] = ("multistart", "uniform"),
-               n_boot: int = 2000, seed: int = 0) -> pd.DataFrame:
+               n_boot: int = 2000, seed: int = 0, budget: float = math.inf) -> pd.DataFrame:
     """ERT of each (strategy, sampler) cell ÷ ERT of the ``baseline`` (strategy, sampler) cell at the same α and
     δ, with a percentile bootstrap 95 % interval (each cell's searches resampled on their own, ``n_boot`` times):
     an interval below 1 says the cell reaches the target significantly faster.  Infinite where the cell never
@@ -168,8 +180,8 @@ def ert_ratios(events: pd.DataFrame, best: float, deltas=DELTAS, baseline: tuple
             rng = np.random.default_rng([seed, int(round(delta * 1000)), 1])
 
             def sample(cell):
-                spent = cell.groupby("search")["cumulative_iterations"].max().sort_index().to_numpy(float)
-                hits = hit_iterations(cell, best + delta).to_numpy()
+                spent = _spent(cell, budget)
+                hits = hit_iterations(cell, best + delta, budget).to_numpy()
                 picks = rng.integers(0, len(hits), (n_boot, len(hits)))
                 return (expected_runtime(hits, spent),
                         np.array([expected_runtime(hits[p], spent[p]) for p in picks]))
@@ -180,20 +192,24 @@ def ert_ratios(events: pd.DataFrame, best: float, deltas=DELTAS, baseline: tuple
                 with np.errstate(invalid="ignore", divide="ignore"):
                     ratio = ert / base if np.isfinite(base) else math.nan
                     ratios = boot / base_boot
-                finite = ratios[~np.isnan(ratios)]
-                lo, hi = ((float(np.quantile(finite, q, method="inverted_cdf")) for q in (0.025, 0.975))
-                          if len(finite) and np.isfinite(base) else (math.nan, math.nan))
+                # A resample in which neither cell succeeded says nothing: it counts against both ends (0 for the
+                # lower, ∞ for the upper quantile), so rare successes widen the interval instead of narrowing it.
+                if np.isfinite(base):
+                    lo = float(np.quantile(np.nan_to_num(ratios, nan=0.0, posinf=np.inf), 0.025, method="inverted_cdf"))
+                    hi = float(np.quantile(np.where(np.isnan(ratios), np.inf, ratios), 0.975, method="inverted_cdf"))
+                else:
+                    lo = hi = math.nan
                 rows.append({"alpha": alpha, "delta": delta, "strategy": strategy, "sampler": sampler,
                              "baseline": " × ".join(baseline), "ratio": ratio, "ratio_lo": lo, "ratio_hi": hi})
     return pd.DataFrame(rows)
 
 
-def runtime_ecdf(events: pd.DataFrame, best: float, deltas=DELTAS) -> pd.DataFrame:
-    """The runtime ECDF per (sampler, strategy, α): for each hit of a (search, δ) pair, in order, the fraction of
-    all its (search, δ) pairs reached by then (``iterations``, ``fraction``)."""
+def runtime_ecdf(events: pd.DataFrame, best: float, deltas=DELTAS, budget: float = math.inf) -> pd.DataFrame:
+    """The runtime ECDF per (sampler, strategy, α): for each hit of a (search, δ) pair within ``budget``, in order,
+    the fraction of all its (search, δ) pairs reached by then (``iterations``, ``fraction``)."""
     rows = []
     for (sampler, strategy, alpha), cell in events.groupby(["sampler", "strategy", "alpha"], sort=True):
-        hits = np.concatenate([hit_iterations(cell, best + d).to_numpy() for d in deltas])
+        hits = np.concatenate([hit_iterations(cell, best + d, budget).to_numpy() for d in deltas])
         finite = np.sort(hits[np.isfinite(hits)])
         rows += [{"sampler": sampler, "strategy": strategy, "alpha": alpha, "iterations": it,
                   "fraction": (k + 1) / len(hits)} for k, it in enumerate(finite)]

@@ -40,7 +40,8 @@ from amorgs.solvers.basin_hopping import HopSettings
 class GlobalStudy:
     """What a study runs: ``searches`` searches of ``budget`` IPOPT iterations for every (strategy, sampler) at
     ``alpha``; ``solver`` is the CR3BP solver's options (a mapping); β (kg) selects the library rows the
-    library-based samplers draw on; ``models_dir`` holds the checkpoints of learned samplers."""
+    library-based samplers draw on; ``models_dir`` holds the checkpoints of learned samplers; ``record`` is the
+    best-known record that joins the target."""
 
     alpha: float
     samplers: tuple[str, ...] = ("uniform", "nearest_alpha")
@@ -54,6 +55,7 @@ class GlobalStudy:
     min_final_mass_kg: float = BETA_KG
     library_dir: str = "data/library"
     models_dir: str | None = None
+    record: str = "data/best_known/cr3bp.json"
 
     def cells(self) -> list[Cell]:
         return [Cell(sampler=s, strategy=t, alpha=self.alpha, searches=self.searches, budget=self.budget,
@@ -107,8 +109,6 @@ _WORKER: dict = {}
 
 
 def _init_worker(study: GlobalStudy, high_quality, train_alphas) -> None:
-    for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(key, "1")
     from amorgs.problems import get_problem
 
     problem = get_problem("cr3bp")
@@ -129,6 +129,8 @@ def run_study(study: GlobalStudy, workers: int = 1) -> dict[str, pd.DataFrame]:
     results do not depend on the number of workers) and compute the study's tables: ``events``, ``solutions``,
     ``runtime_to_target``, ``runtime_ecdf``, ``distinct`` and ``best_known`` (one row: objective, m_f, source)."""
     study.check()
+    for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # before the workers import numpy
+        os.environ.setdefault(key, "1")
     hq, train = training_high_quality(study)
     tasks = [(cell, r) for cell in study.cells() for r in range(cell.searches)]
     if workers <= 1:
@@ -144,19 +146,24 @@ def run_study(study: GlobalStudy, workers: int = 1) -> dict[str, pd.DataFrame]:
 
 
 def summarize(study: GlobalStudy, events: pd.DataFrame, solutions: pd.DataFrame) -> dict[str, pd.DataFrame]:
-    """The study's tables from its events and solutions, timed against the best known objective at its α."""
+    """The study's tables from its events and solutions, timed against the best known objective at its α: the
+    best-known record's (:mod:`amorgs.data.best_known`, ``record``), the library's verified rows' or the study's
+    own, whichever is lowest; hits beyond the budget do not count."""
+    from amorgs.data import best_known as bk
+
     library = library_rows(study.library_dir, study.alpha)
     verified = library[library["converged"]] if len(library) else library
     found = solutions["objective"] if len(solutions) else []
     lib_best = best_known(-verified["m_f"]) if len(verified) else np.nan
-    best = best_known([lib_best], found)
-    source = "library" if best == lib_best else "this study"
+    record_best = -bk.best_m_f(bk.read_record(study.record), study.alpha)
+    best = best_known([lib_best], [record_best], found)
+    source = "library" if best == lib_best else "best-known record" if best == record_best else "this study"
     tables = {
         "events": events,
         "solutions": solutions,
-        "runtime_to_target": runtime_to_target(events, best, study.deltas, seed=study.seed),
-        "runtime_ecdf": runtime_ecdf(events, best, study.deltas),
-        "ert_ratios": ert_ratios(events, best, study.deltas, seed=study.seed),
+        "runtime_to_target": runtime_to_target(events, best, study.deltas, seed=study.seed, budget=study.budget),
+        "runtime_ecdf": runtime_ecdf(events, best, study.deltas, budget=study.budget),
+        "ert_ratios": ert_ratios(events, best, study.deltas, seed=study.seed, budget=study.budget),
         "distinct": distinct_near_best(solutions, best, study.deltas) if len(solutions) else pd.DataFrame(),
         "best_known": pd.DataFrame([{"alpha": study.alpha, "objective": best, "m_f": -best, "source": source,
                                      "library_rows": len(library), "library_best_m_f": -lib_best}]),

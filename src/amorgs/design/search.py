@@ -210,7 +210,10 @@ def best_known(library_dir: str | Path, alpha: float, solves: pd.DataFrame,
     library = [-float(e["best_objective"]) for e in manifest.get("per_alpha", [])
                if alpha_label(e["alpha"]) == alpha_label(alpha) and e.get("best_objective") is not None]
     conv = solves[solves["converged"].astype(bool)] if len(solves) else solves
-    record = bk.best_m_f(bk.read_record(record_path or bk.DEFAULT_PATH), alpha)
+    try:
+        record = bk.best_m_f(bk.read_record(record_path or bk.DEFAULT_PATH), alpha)
+    except InputError:  # a damaged record must not lose a finished search: the library and the search still count
+        record = math.nan
     candidates = {"best-known record": record, "library": library[0] if library else math.nan,
                   "this search": float(conv["m_f"].max()) if len(conv) else math.nan}
     known = {k: v for k, v in candidates.items() if math.isfinite(v)}

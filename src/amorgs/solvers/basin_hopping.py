@@ -147,7 +147,7 @@ def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], 
         else:
             x0 = hop(np.asarray(incumbent.x, float), lower, upper, settings, rng)
         record = solve(np.asarray(x0, float))
-        used += int(record.iterations)
+        used += max(1, int(record.iterations))  # a solve that failed before IPOPT ran still costs: no endless loop
         accepted = improves(record, incumbent, settings.min_improvement)
         if accepted:
             incumbent, misses = record, 0
@@ -182,7 +182,11 @@ class Chains:
         ``fresh(m)`` draws the m restarts (called once, before the hops draw from ``rng``)."""
         size = len(self.incumbents) if size is None else size
         restart = [self.incumbents[i] is None or self.misses[i] >= self.settings.patience for i in range(size)]
-        drawn = iter(np.asarray(fresh(sum(restart)), float)) if any(restart) else iter(())
+        wanted = sum(restart)
+        drawn = np.asarray(fresh(wanted), float) if wanted else np.empty((0, 0))
+        if len(drawn) < wanted:
+            raise ValueError(f"the sampler gave {len(drawn)} starts for {wanted} restarting chains")
+        drawn = iter(drawn)
         guesses, kinds = [], []
         for i in range(size):
             if restart[i]:
