@@ -566,7 +566,8 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                                    "and study), with bootstrap intervals, the runtime ECDF and distinct near-best ones.")
     p.add_argument("--alpha", type=float, required=True, help="the α (N) searched")
     p.add_argument("--samplers", nargs="+", default=["uniform", "nearest_alpha"], help="arms whose starts seed searches")
-    p.add_argument("--strategies", nargs="+", default=["multistart", "mbh"], help="multistart and/or mbh")
+    p.add_argument("--strategies", nargs="+", default=["multistart", "mbh"],
+                   help="multistart, mbh and/or mbh_warm (hops re-solved from near a solution)")
     p.add_argument("--searches", type=int, default=30, help="independent searches per cell (default 30)")
     p.add_argument("--budget", type=int, default=5000, help="IPOPT iterations per search (default 5000)")
     p.add_argument("--max-iter", type=int, default=1000, help="IPOPT iteration cap per solve (default 1000)")

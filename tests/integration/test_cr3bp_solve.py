@@ -8,6 +8,7 @@ import pytest
 from amorgs.problems import get_problem
 from amorgs.problems.cr3bp.propagation import match_defect, propagate
 from amorgs.problems.cr3bp.transcription import variable_names
+from amorgs.solvers.basin_hopping import WARM_HOP_IPOPT
 from amorgs.solvers.ipopt import IpoptSolver
 from amorgs.solvers.options import IpoptOptions
 
@@ -137,8 +138,8 @@ def test_the_stall_monitor_is_attached_only_when_on_and_never_changes_the_iterat
 
 
 #: IPOPT started *at* a solution: keep the start's bound-active controls where they are (IPOPT's default pushes
-#: them 1e-2 inside the box and restarts the barrier) and start the barrier small.
-AT_A_SOLUTION = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8, "bound_mult_init_method": "mu-based"}
+#: them 1e-2 inside the box and restarts the barrier) and start the barrier small — basin hopping's warm hops.
+AT_A_SOLUTION = WARM_HOP_IPOPT
 
 
 def test_solutions_lie_inside_the_box_and_are_valid_warm_starts(problem, solver):

@@ -53,7 +53,8 @@ def test_hop_settings_refuse_what_they_cannot_do():
         strategy_settings("annealing", HopSettings())
     assert strategy_settings("multistart", HopSettings(patience=7)).patience == 0
     assert strategy_settings("mbh", HopSettings(patience=7)).patience == 7
-    assert set(STRATEGIES) == {"multistart", "mbh"}
+    assert set(STRATEGIES) == {"multistart", "mbh", "mbh_warm"}
+    assert strategy_settings("mbh_warm", HopSettings(patience=7)).patience == 7
 
 
 def _record(objective: float, converged: bool = True) -> SolveRecord:
@@ -240,3 +241,32 @@ def test_a_hit_beyond_the_budget_does_not_count_and_a_rare_success_widens_the_ra
                          "cumulative_iterations": 1000, "best_objective": -10.0 if hit else -1.0})
     ratio = ert_ratios(pd.DataFrame(rows), -10.0, deltas=(0.5,), n_boot=400).set_index("strategy").loc["mbh"]
     assert ratio["ratio"] == 1.0 and ratio["ratio_lo"] == 0.0 and ratio["ratio_hi"] == math.inf
+
+
+def test_warm_hops_are_re_solved_with_the_warm_options_and_starts_are_not():
+    """mbh_warm: the hop solver is the start solver's options with WARM_HOP_IPOPT over its extra IPOPT options
+    (mapping or typed options); the search calls it for hops only."""
+    from amorgs.solvers.basin_hopping import WARM_HOP_IPOPT, hop_solver_options
+    from amorgs.solvers.options import IpoptOptions
+
+    assert hop_solver_options("mbh", {"max_iter": 5}) is None and hop_solver_options("multistart", {}) is None
+    warm = hop_solver_options("mbh_warm", {"max_iter": 5, "ipopt_options": {"print_level": 0}})
+    assert warm["max_iter"] == 5 and warm["ipopt_options"] == {"print_level": 0, **WARM_HOP_IPOPT}
+    typed = hop_solver_options("mbh_warm", IpoptOptions(max_iter=7))
+    assert typed.max_iter == 7 and typed.ipopt_options == WARM_HOP_IPOPT
+    problem = get_problem("dejong")
+    solver = problem.make_local_solver(None)
+    calls = {"start": 0, "hop": 0}
+
+    def counted(kind):
+        def solve(x):
+            calls[kind] += 1
+            return solver.solve(x, 0.3)
+        return solve
+
+    starts = iter(problem.sample_uniform(0.3, 100, np.random.default_rng(1)))
+    trace = search(counted("start"), lambda: next(starts, None), problem.lower, problem.upper,
+                   HopSettings(distribution="cauchy", scale=0.2, patience=3), 300, np.random.default_rng(0),
+                   solve_hop=counted("hop"))
+    kinds = [e["kind"] for e in trace.events]
+    assert calls == {"start": kinds.count("start"), "hop": kinds.count("hop")} and calls["hop"] > 0

@@ -35,11 +35,11 @@ DELTAS = (0.1, 0.5, 2.0)
 
 
 def strategy_settings(strategy: str, hops: HopSettings) -> HopSettings:
-    """The hop settings a strategy searches with: ``hops`` for MBH, ``patience = 0`` (never hop) for
-    multi-start; ``ValueError`` for an unknown strategy."""
+    """The hop settings a strategy searches with: ``hops`` for the basin-hopping strategies, ``patience = 0``
+    (never hop) for multi-start; ``ValueError`` for an unknown strategy."""
     if strategy not in STRATEGIES:
         raise ValueError(f"strategy {strategy!r}: one of {', '.join(STRATEGIES)}")
-    return hops if strategy == "mbh" else replace(hops, patience=0)
+    return replace(hops, patience=0) if strategy == "multistart" else hops
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ def _starts(sample, alpha: float, rng: np.random.Generator, batch: int = START_B
 
 
 def run_search(cell: Cell, r: int, sample, solve, lower: np.ndarray, upper: np.ndarray,
-               variable_names: tuple[str, ...]) -> tuple[list[dict], list[dict]]:
+               variable_names: tuple[str, ...], solve_hop=None) -> tuple[list[dict], list[dict]]:
     """Search ``r`` of ``cell``: ``sample(alpha, n, rng)`` is the sampler, ``solve(x0, alpha)`` the local solver,
     the generator ``default_rng([cell.seed, r])`` draws both its starts and its hops.  Returns its event rows
     (the cell's keys, ``search``, :class:`~amorgs.solvers.basin_hopping.SearchTrace`'s columns and ``stop``) and
@@ -89,8 +89,9 @@ def run_search(cell: Cell, r: int, sample, solve, lower: np.ndarray, upper: np.n
     settings = strategy_settings(cell.strategy, cell.hops)
     keys = {"sampler": cell.sampler, "strategy": cell.strategy, "alpha": cell.alpha}
     rng = np.random.default_rng([cell.seed, r])
+    hop_solve = (lambda x0: solve_hop(x0, cell.alpha)) if solve_hop is not None else None
     trace = search(lambda x0: solve(x0, cell.alpha), _starts(sample, cell.alpha, rng), lower, upper, settings,
-                   cell.budget, rng)
+                   cell.budget, rng, hop_solve)
     events = [{**keys, "search": r, **e, "stop": trace.stop} for e in trace.events]
     objective = {e["solve"]: e["objective"] for e in trace.events}
     solutions = [{**keys, "search": r, "event": i, "objective": objective[i], **dict(zip(variable_names, x))}
@@ -99,11 +100,11 @@ def run_search(cell: Cell, r: int, sample, solve, lower: np.ndarray, upper: np.n
 
 
 def run_cell(cell: Cell, sample, solve, lower: np.ndarray, upper: np.ndarray,
-             variable_names: tuple[str, ...]) -> tuple[pd.DataFrame, pd.DataFrame]:
+             variable_names: tuple[str, ...], solve_hop=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Every search of ``cell`` in this process (:func:`run_search`), as two tables: events and solutions."""
     events, solutions = [], []
     for r in range(cell.searches):
-        e, s = run_search(cell, r, sample, solve, lower, upper, variable_names)
+        e, s = run_search(cell, r, sample, solve, lower, upper, variable_names, solve_hop)
         events += e
         solutions += s
     return pd.DataFrame(events), pd.DataFrame(solutions)

@@ -111,8 +111,12 @@ _WORKER: dict = {}
 def _init_worker(study: GlobalStudy, high_quality, train_alphas) -> None:
     from amorgs.problems import get_problem
 
+    from amorgs.solvers.basin_hopping import hop_solver_options
+
     problem = get_problem("cr3bp")
-    _WORKER.update(problem=problem, solver=problem.make_local_solver(study.solver), samplers={
+    warm = hop_solver_options("mbh_warm", study.solver)
+    _WORKER.update(problem=problem, solver=problem.make_local_solver(study.solver),
+                   hop_solver=problem.make_local_solver(warm) if "mbh_warm" in study.strategies else None, samplers={
         name: build_sampler(name, problem, models_dir=study.models_dir, high_quality=high_quality,
                             train_alphas=train_alphas) for name in study.samplers})
 
@@ -120,8 +124,9 @@ def _init_worker(study: GlobalStudy, high_quality, train_alphas) -> None:
 def _search_task(task: tuple[Cell, int]) -> tuple[list[dict], list[dict]]:
     cell, r = task
     p = _WORKER["problem"]
+    hop = _WORKER["hop_solver"].solve if cell.strategy == "mbh_warm" else None
     return run_search(cell, r, _WORKER["samplers"][cell.sampler].sample, _WORKER["solver"].solve, p.lower, p.upper,
-                      p.variable_names)
+                      p.variable_names, hop)
 
 
 def run_study(study: GlobalStudy, workers: int = 1) -> dict[str, pd.DataFrame]:

@@ -11,11 +11,16 @@ from matplotlib.figure import Figure
 from amorgs.ablation.arms import arm_label
 
 
+#: Line style and label per strategy.
+STYLES = {"multistart": "--", "mbh": "-", "mbh_warm": ":"}
+LABELS = {"multistart": "multi-start", "mbh": "MBH", "mbh_warm": "MBH, warm hops"}
+
+
 def fig_runtime_ecdf(ecdf: pd.DataFrame, cells: pd.DataFrame, best_m_f: dict[float, float], deltas,
                      budget: int) -> Figure:
     """One panel per α of ``best_m_f`` (α → best known m_f, kg), one step curve per (strategy, sampler) of
     ``cells`` (columns alpha, strategy, sampler; a cell with no hit is drawn flat at 0): solid for basin hopping,
-    dashed for multi-start, one colour per sampler; x logarithmic to the budget (IPOPT iterations) or the latest
+    dotted for basin hopping with warm hops, dashed for multi-start, one colour per sampler; x logarithmic to the budget (IPOPT iterations) or the latest
     hit beyond it."""
     alphas = sorted(best_m_f)
     fig = Figure(figsize=(7.5, 4.4 * len(alphas)), layout="constrained")
@@ -31,8 +36,8 @@ def fig_runtime_ecdf(ecdf: pd.DataFrame, cells: pd.DataFrame, best_m_f: dict[flo
             mine = mine.sort_values("iterations")
             x = np.r_[1.0, mine["iterations"].to_numpy(float), right]
             y = np.r_[0.0, mine["fraction"].to_numpy(float), mine["fraction"].iloc[-1] if len(mine) else 0.0]
-            ax.step(x, y, where="post", color=colours[sampler], linestyle="-" if strategy == "mbh" else "--",
-                    label=f"{'MBH' if strategy == 'mbh' else 'multi-start'} · {arm_label(sampler)}")
+            ax.step(x, y, where="post", color=colours[sampler], linestyle=STYLES.get(strategy, "-."),
+                    label=f"{LABELS.get(strategy, strategy)} · {arm_label(sampler)}")
         ax.set_xscale("log")
         ax.set_xlim(10, right)
         ax.set_ylim(0, 1)

@@ -59,7 +59,26 @@ HOP_DISTRIBUTIONS: dict[str, Callable[[np.random.Generator, int, float], np.ndar
 STRATEGIES = {
     "multistart": "every solve starts from the sampler (never hops)",
     "mbh": "monotonic basin hopping: hop from the incumbent, restart from the sampler after `patience` misses",
+    "mbh_warm": "basin hopping whose hop re-solves start IPOPT as near a solution (WARM_HOP_IPOPT)",
 }
+
+#: IPOPT options of a re-solve started near a solution (a hop of ``mbh_warm``): keep the start's bound-active
+#: variables where they are (IPOPT's default pushes them 1e-2 inside the box) and start the barrier small
+#: instead of at μ = 0.1, so the re-solve does not walk most of the way again.
+WARM_HOP_IPOPT = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8, "bound_mult_init_method": "mu-based"}
+
+
+def hop_solver_options(strategy: str, options):
+    """The solver options of ``strategy``'s hop re-solves: ``options`` with :data:`WARM_HOP_IPOPT` over its extra
+    IPOPT options for ``mbh_warm`` (a mapping or an :class:`~amorgs.solvers.options.IpoptOptions`), None (the
+    starts' solver) otherwise."""
+    if strategy != "mbh_warm":
+        return None
+    if isinstance(options, dict):
+        return {**options, "ipopt_options": {**options.get("ipopt_options", {}), **WARM_HOP_IPOPT}}
+    import dataclasses
+
+    return dataclasses.replace(options, ipopt_options={**options.ipopt_options, **WARM_HOP_IPOPT})
 
 
 @dataclass(frozen=True)
@@ -125,9 +144,10 @@ class SearchTrace:
 
 def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], np.ndarray | None],
            lower: np.ndarray, upper: np.ndarray, settings: HopSettings, budget_iterations: int,
-           rng: np.random.Generator) -> SearchTrace:
+           rng: np.random.Generator, solve_hop: Callable[[np.ndarray], SolveRecord] | None = None) -> SearchTrace:
     """Run one search until the iterations of its solves reach ``budget_iterations`` (the solve that crosses it
-    counts whole) or the sampler runs out.  ``settings.patience`` = 0 is multi-start."""
+    counts whole) or the sampler runs out.  ``settings.patience`` = 0 is multi-start; hops are re-solved by
+    ``solve_hop`` where given (``mbh_warm``), else by ``solve``."""
     if budget_iterations <= 0:
         raise ValueError(f"budget_iterations must be positive, got {budget_iterations}")
     trace = SearchTrace()
@@ -146,7 +166,7 @@ def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], 
             incumbent, misses, run = None, 0, run + 1
         else:
             x0 = hop(np.asarray(incumbent.x, float), lower, upper, settings, rng)
-        record = solve(np.asarray(x0, float))
+        record = (solve if restart or solve_hop is None else solve_hop)(np.asarray(x0, float))
         used += max(1, int(record.iterations))  # a solve that failed before IPOPT ran still costs: no endless loop
         accepted = improves(record, incumbent, settings.min_improvement)
         if accepted:

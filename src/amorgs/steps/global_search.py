@@ -18,7 +18,7 @@ from amorgs.alphas import alpha_label, metric_key
 from amorgs.config import Config, Section
 from amorgs.data.seeds import cell_seed
 from amorgs.errors import InputError
-from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, STRATEGIES, HopSettings
+from amorgs.solvers.basin_hopping import HOP_DISTRIBUTIONS, STRATEGIES, HopSettings, hop_solver_options
 from amorgs.solvers.options import IpoptOptions
 from amorgs.steps import Job, Step, Wildcards, once_if, resources_of
 from amorgs.steps.ablation import cell_inputs, cell_sampler
@@ -73,8 +73,10 @@ def run_cell(job: Job, run) -> None:
                 seed=s.seed, hops=HopSettings(distribution=s.hop_distribution, scale=s.hop_scale, shape=s.hop_shape,
                                               patience=s.patience))
     solver = problem.make_local_solver(s.solver)
+    warm = hop_solver_options(s.strategy, s.solver)
+    hop_solve = problem.make_local_solver(warm).solve if warm is not None else None
     events, solutions = search_cell(cell, sampler.sample, solver.solve, problem.lower, problem.upper,
-                                    problem.variable_names)
+                                    problem.variable_names, hop_solve)
     if not len(events):
         raise InputError(f"global_search_cell: {s.sampler} gave no start at α = {s.alpha:g}")
     write_parquet(events, job.output["events"])
