@@ -96,17 +96,19 @@ def slurm_jobs(out: str) -> dict[str, dict[str, str]]:
     return jobs
 
 
-def rule_resources(cfg, comment: str):
-    """(rule, the config section its resources come from) of the SLURM job whose comment (set by the plugin)
-    is ``comment``: ``rule_<rule>`` or ``rule_<rule>_wildcards_<values>``, e.g. ``rule_generate_wildcards_cr3bp_0.150_0``."""
-    rule, wildcards = re.fullmatch(r"rule_(\w+?)(?:_wildcards_(.*))?", comment).groups()
-    if rule == "generate":
-        return rule, getattr(cfg.problems, wildcards.split("_")[0]).generate
-    if rule.startswith("ablation_cell"):
-        return rule, cfg.ablation
-    if rule == "transfer":
-        return rule, cfg.transfer
-    return rule, getattr(cfg.resources, {"analyze_cr3bp": "analyze"}.get(rule, rule.split("_")[0]))
+def submitted_job(cfg, remote, comment: str):
+    """(rule, resources) of the expected job whose SLURM comment (set by the plugin) is ``comment``:
+    ``rule_<rule>`` or ``rule_<rule>_wildcards_<values joined by _>``, e.g. ``rule_generate_wildcards_cr3bp_0.150_0``.
+    The resources are the workflow's own (:func:`amorgs.steps.job_resources`), so a new rule needs no entry here."""
+    from itertools import permutations
+
+    from amorgs.steps import job_resources
+
+    for rule, w in remote:
+        for values in permutations(w.values()) if w else [()]:
+            if comment == (f"rule_{rule}_wildcards_{'_'.join(values)}" if values else f"rule_{rule}"):
+                return rule, job_resources(rule, cfg, w)
+    raise AssertionError(f"no expected job has the SLURM comment {comment!r}")
 
 
 def dry_run(wd: Path) -> str:
@@ -154,11 +156,11 @@ def test_smoke_workflow_on_slurm_matches_a_local_run(cluster, mlflow_server, tmp
     assert len(jobs) == len(remote)
     for fields in jobs.values():
         assert fields["JobState"] == "COMPLETED", fields
-        rule, section = rule_resources(typed, fields["Comment"])
-        threads = section.workers if hasattr(section, "workers") else section.threads
+        rule, job = submitted_job(typed, remote, fields["Comment"])
         assert (fields["MinMemoryNode"], fields["TimeLimit"], fields["NumCPUs"]) == (
-            f"{section.mem_mb}M", f"00:{section.runtime_min:02d}:00", str(threads)), fields
-    assert sorted(rule_resources(typed, f["Comment"])[0] for f in jobs.values()) == sorted(rule for rule, _ in remote)
+            f"{job.mem_mb}M", f"00:{job.runtime_min:02d}:00", str(job.threads)), fields
+    assert sorted(submitted_job(typed, remote, f["Comment"])[0] for f in jobs.values()) == sorted(
+        rule for rule, _ in remote)
 
     check = [sys.executable, "-m", "amorgs", "check-outputs", "--config"]
     for config_file in ("config/test.yaml", "config/smoke.yaml"):  # the same outputs; runs on the server either way
