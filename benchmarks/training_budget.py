@@ -8,7 +8,8 @@ epoch of the config: the typed defaults) and ``bounded`` (at most ``--cap`` rows
 LSTM; noise from a fixed seed) on the high-quality rows of the config's *test* α, which neither variant saw.
 
 De Jong (``--dejong-hq``, the workflow's ``results/dejong/high_quality.parquet``): the GMM-prior CVAE trained
-full (the typed defaults' epochs) and with early stopping; quality: the hit rate within the radius and the
+full (the typed defaults' epochs) and on a seeded sample of ≤ ``--dejong-caps`` minima per training α (optionally
+with early stopping, ``--dejong-patience``); quality: the hit rate within the radius and the
 minima found at each test α (``amorgs.analysis.dejong_eval.prediction_metrics``, 1000 samples, the same seed).
 
 Prints the tables and writes them to ``docs/performance.md`` (sections ``training-budget-cr3bp``, ``-dejong``)::
@@ -29,6 +30,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from amorgs.alphas import cap_per_alpha, rows_at_any
 from amorgs.config import load_config
 from amorgs.data.library import read_library
 from amorgs.models import cr3bp_models as cm
@@ -74,7 +76,7 @@ def cr3bp_rows(args, cfg) -> list[dict]:
     for name in args.models:
         for variant in ("full", "bounded"):
             bounded = variant == "bounded"
-            data = cm.cap_per_alpha(hq, args.cap, m.seed) if bounded else hq
+            data = cap_per_alpha(hq, args.cap, m.seed) if bounded else hq
             tc = TrainConfig(epochs=m.epochs, batch_size=m.batch_size, lr=m.learning_rate, seed=m.seed, device="cpu",
                              progress_every=0, validation_fraction=args.validation if bounded else 0.0,
                              patience=args.patience if bounded else 0)
@@ -95,14 +97,18 @@ def dejong_rows(args, cfg) -> list[dict]:
     c, problem = cfg.dejong_cvae, cfg.problems.dejong
     names = list(get_problem("dejong").variable_names)
     df = pd.read_parquet(args.dejong_hq)
-    df = df[np.isin(df["alpha"].round(9), np.round(problem.alphas.train_values(), 9))]
-    x, alpha = df[names].to_numpy(float), df["alpha"].to_numpy(float)
+    df = rows_at_any(df, problem.alphas.train_values()).reset_index(drop=True)
     rows = []
-    for variant in ("full", "bounded"):
-        bounded = variant == "bounded"
+    # full: every minimum, every epoch; then each --dejong-caps value: ≤ cap minima per training α (seeded, as
+    # dejong_cvae.max_rows_per_alpha), every epoch unless --dejong-patience
+    for cap in [None, *args.dejong_caps]:
+        variant = "full" if cap is None else f"≤ {cap} per α"
+        sample = cap_per_alpha(df, cap, c.seed)
+        x, alpha = sample[names].to_numpy(float), sample["alpha"].to_numpy(float)
+        patience = args.dejong_patience if cap is not None else 0
         tc = TrainConfig(epochs=c.epochs, batch_size=c.batch_size, lr=c.learning_rate, seed=c.seed, device="cpu",
-                         progress_every=0, validation_fraction=args.validation if bounded else 0.0,
-                         patience=args.dejong_patience if bounded else 0)
+                         progress_every=0, validation_fraction=args.validation if patience else 0.0,
+                         patience=patience)
         torch.manual_seed(c.seed)
         model = cvae.GMMPriorCVAE(_cvae_config(c.preset), cvae.Normalizer.from_data(x))
         model, cpu_s, ran = trained(lambda on_epoch: (train(model, x, alpha, tc, on_epoch), model)[1])
@@ -130,7 +136,10 @@ def main() -> None:
     ap.add_argument("--validation", type=float, default=0.1)
     ap.add_argument("--patience", type=int, default=30)
     ap.add_argument("--dejong-hq", type=Path, default=None, help="a workflow's results/dejong/high_quality.parquet")
-    ap.add_argument("--dejong-patience", type=int, default=50)
+    ap.add_argument("--dejong-caps", type=int, nargs="*", default=[40],
+                    help="De Jong: minima per training α of each capped variant")
+    ap.add_argument("--dejong-patience", type=int, default=0, help="De Jong: early stopping of the capped "
+                                                                      "variants (0: every epoch)")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--skip-cr3bp", action="store_true")
     args = ap.parse_args()
@@ -145,7 +154,9 @@ def main() -> None:
         print(text)
         write_section("training-budget-cr3bp", text)
     if args.dejong_hq is not None:
-        text = (f"Command: `{cmd}` — {setup.format(args.dejong_patience)} Quality: the fraction of 1000 samples "
+        text = (f"Command: `{cmd}` — full: every minimum and every epoch of the config; capped: a seeded sample of "
+                f"≤ cap minima per training α, patience {args.dejong_patience or 'none'}; {args.threads} torch "
+                f"thread(s). Quality: the fraction of 1000 samples "
                 f"within the radius of a true minimum, and the minima covered (of 8), per test α.\n\n"
                 + markdown(dejong_rows(args, cfg)))
         print(text)

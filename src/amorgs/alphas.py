@@ -46,6 +46,19 @@ def rows_at_any(df: pd.DataFrame, alphas: Iterable[float | str], column: str = "
     return df[df[column].map(alpha_label).isin(labels)]
 
 
+def cap_per_alpha(df: pd.DataFrame, max_rows: int | None, seed: int) -> pd.DataFrame:
+    """At most ``max_rows`` rows of every α — a seeded sample where an α holds more, every row where it holds
+    fewer (stratified by α: a crowded α does not crowd out the others); order kept, index reset.  ``None``
+    returns ``df`` whole."""
+    if max_rows is None:
+        return df
+    rng = np.random.default_rng([seed, 40])
+    keep = np.zeros(len(df), dtype=bool)
+    for rows in df.groupby(df["alpha"].map(alpha_label), sort=True).indices.values():
+        keep[rows if len(rows) <= max_rows else rng.choice(rows, size=max_rows, replace=False)] = True
+    return df.loc[keep].reset_index(drop=True)
+
+
 def alpha_value(alpha: float | str) -> float:
     """The α that ``alpha`` is, as a number: the float of its label (``0.1500001`` → ``0.15``)."""
     return float(alpha_label(alpha))

@@ -231,6 +231,8 @@ class DejongCVAE(Section):
     epochs: PositiveInt = 1500
     batch_size: Annotated[int, Field(ge=2)] = 16384
     seed: Seed = 7
+    max_rows_per_alpha: PositiveInt | None = Field(None, description=(
+        "train on at most this many minima of each training α, a seeded sample (the seed's; null: every row)"))
     validation_fraction: Annotated[float, Field(ge=0, lt=1, description=(
         "share of the minima held out, seeded, for the validation loss of early stopping (0: none)"))] = 0.0
     patience: Annotated[int, Field(ge=0, description=(

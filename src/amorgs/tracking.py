@@ -6,8 +6,9 @@ can be browsed and compared.  Layout of the store (``results/mlflow/``)::
     mlflow.db          SQLite tracking store, URI ``sqlite:///<absolute path>/mlflow.db?timeout=60``
     artifacts/         artifact root of the experiment (figures, configs)
     invocation.json    the current workflow invocation: experiment, parent run id, config hash, git commit
-    pending/           the record of each job that finished while its tracking failed (disk full, a lost
-                       database): params, metrics and artifact paths, written into a run by the next invocation
+    pending/           the record of each deferred job, and of each job that finished while its tracking failed
+                       (disk full, a lost database): params, metrics, artifact paths, times and status, written
+                       into a run when the invocation ends (or by the next one)
     .lock              serialises every write (see below)
 
 The tracking URI is config ``mlflow.tracking_uri`` (``null``: the SQLite store above), overridden by the
@@ -16,7 +17,11 @@ stay under ``results/mlflow/`` whichever server holds the runs.
 
 One *parent* run per workflow invocation (:func:`start_invocation` in Snakemake's ``onstart``, closed by
 :func:`finish_invocation` in ``onsuccess``/``onerror``) and one *child* run per job (:func:`job_run`), tagged
-with the rule, its wildcards, the config hash, the git commit and the package versions.  Jobs log the tables
+with the rule, its wildcards, the config hash, the git commit and the package versions.  A job that does
+seconds of work (``job_run(..., deferred=True)``: a merge, a De Jong shard) does not open its run itself —
+MLflow's import and a run in the SQLite store cost ≈ 4.5 s wall of a 1.5 s job — but keeps the same record
+(params, metrics, artifact paths, start and end times, status) under ``pending/``; :func:`finish_invocation`
+writes every record into a child run of the invocation, with the job's own times, and removes it.  Jobs log the tables
 they read as MLflow datasets (:meth:`JobRun.log_dataset`: name, digest, schema and row count, not a copy) and
 trained checkpoints as MLflow logged models whose metrics are linked to them (:meth:`JobRun.start_model`).
 
@@ -281,35 +286,48 @@ def _open_parent_run(
 
 
 def _record_pending(store: Path, client, experiment_id: str, parent_run_id: str) -> None:
-    """Write each record left under ``pending/`` (a job that finished while its tracking failed) into a FINISHED
-    child run of ``parent_run_id`` — its params, metrics and the artifacts that still exist, tagged
-    ``recorded_late`` with when the job finished — and remove the record.  Called with the store locked."""
+    """Write each record left under ``pending/`` into a child run of ``parent_run_id`` and remove it: its params,
+    metrics and the artifacts that still exist, the job's own start and end times and status, and the
+    invocation's identity tags it ran under.  A deferred job's record (:meth:`JobRun.defer`) is tagged
+    ``deferred``; the record of a job whose tracking failed ``recorded_late`` with when the job finished.
+    Called with the store locked; a record that cannot be written stays for the next call."""
     from mlflow.entities import Metric
 
     folder = store / PENDING_DIR
     for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        run_id = None
         try:
             j = read_json(path)
             wildcards = j["wildcards"]
             tags = {"mlflow.parentRunId": parent_run_id, "kind": "job", "rule": j["rule"],
                     "wildcards": json.dumps(wildcards, sort_keys=True),
-                    **{f"wildcard.{k}": str(v) for k, v in wildcards.items()}, "recorded_late": j["finished"]}
+                    **{f"wildcard.{k}": str(v) for k, v in wildcards.items()}, **j.get("tags", {})}
+            if j.get("deferred"):
+                tags["deferred"] = "true"
+            else:
+                tags["recorded_late"] = j["finished"]
             name = " ".join([j["rule"], *(f"{k}={v}" for k, v in wildcards.items())])
-            run_id = client.create_run(experiment_id, run_name=name, tags=tags).info.run_id
+            run_id = client.create_run(experiment_id, start_time=j.get("start_ms"), run_name=name,
+                                       tags=tags).info.run_id
             params = _params(j["params"])
             for i in range(0, len(params), 100):
                 client.log_batch(run_id, params=params[i : i + 100])
-            ts = int(time.time() * 1000)
+            ts = j.get("end_ms") or int(time.time() * 1000)
             metrics = [Metric(k, v, ts, step) for k, v, step in j["metrics"]]
             for i in range(0, len(metrics), _MAX_BATCH):
                 client.log_batch(run_id, metrics=metrics[i : i + _MAX_BATCH])
             for file, artifact_path in j["artifacts"]:
                 if Path(file).is_file():
                     client.log_artifact(run_id, file, artifact_path)
-            client.set_terminated(run_id, "FINISHED")
+            client.set_terminated(run_id, j.get("status", "FINISHED"), end_time=j.get("end_ms"))
             path.unlink()
         except Exception as exc:  # noqa: BLE001 — the record stays for the next invocation
             _warn(f"recording {path.name}", exc)
+            if run_id is not None:  # no half-written run beside the one the next call writes
+                try:
+                    client.delete_run(run_id)
+                except Exception:  # noqa: BLE001
+                    pass
 
 
 def stop_tracking(store_dir: str | Path = STORE_DIR) -> None:
@@ -333,7 +351,8 @@ def invocation_run(store_dir: str | Path = STORE_DIR) -> JobRun:
 
 
 def finish_invocation(status: str, store_dir: str | Path = STORE_DIR) -> None:
-    """Close the current parent run with ``status`` (``FINISHED``, ``FAILED``, ``KILLED``); warn, never raise."""
+    """Write the records under ``pending/`` (the deferred jobs', :func:`_record_pending`) into child runs, then
+    close the current parent run with ``status`` (``FINISHED``, ``FAILED``, ``KILLED``); warn, never raise."""
     store = Path(store_dir)
     path = store / INVOCATION_FILE
     if not path.exists():
@@ -341,7 +360,9 @@ def finish_invocation(status: str, store_dir: str | Path = STORE_DIR) -> None:
     try:
         inv = read_json(path)
         with _locked(store):
-            _client(inv["tracking_uri"]).set_terminated(inv["parent_run_id"], status)
+            client = _client(inv["tracking_uri"])
+            _record_pending(store, client, inv["experiment_id"], inv["parent_run_id"])  # the deferred jobs' runs
+            client.set_terminated(inv["parent_run_id"], status)
     except Exception as exc:  # noqa: BLE001
         _warn("closing the workflow run", exc)
 
@@ -366,11 +387,20 @@ class JobRun:
         #: What a job of a tracked invocation logged (:meth:`expect`), kept to be written later if tracking fails.
         self._journal: dict | None = None
         self._lost = False  # tracking was expected and failed
+        self._deferred = False  # the run is written from the journal when the invocation ends
 
     def expect(self, rule: str, wildcards: dict[str, str], lost: bool = False) -> JobRun:
         """Keep a journal of what this job logs; ``lost``: its run could not even be opened."""
         self._journal = {"rule": rule, "wildcards": wildcards, "params": {}, "metrics": [], "artifacts": []}
         self._lost = lost
+        return self
+
+    def defer(self, rule: str, wildcards: dict[str, str], tags: dict[str, str]) -> JobRun:
+        """Keep a journal instead of a run: :meth:`close` leaves it under ``pending/`` with the job's times,
+        status and ``tags`` (the invocation's identity), and :func:`finish_invocation` writes the run."""
+        self.expect(rule, wildcards)
+        self._journal.update(tags=tags, deferred=True, start_ms=int(time.time() * 1000))
+        self._deferred = True
         return self
 
     def _opened(self) -> None:
@@ -520,30 +550,42 @@ class JobRun:
                 _warn("finalize_logged_model", exc)
             self._model_id = None
         self._call("set_terminated", status)
-        if self._lost and self._journal is not None and status == "FINISHED":
-            self._leave_pending()
+        if self._deferred or (self._lost and self._journal is not None and status == "FINISHED"):
+            self._leave_pending(status)
 
-    def _leave_pending(self) -> None:
-        """Write this job's journal under ``pending/`` for the next invocation (:func:`_record_pending`)."""
+    def _leave_pending(self, status: str) -> None:
+        """Write this job's journal under ``pending/`` (:func:`_record_pending`)."""
         j = self._journal
         key = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%S%f")
         name = f"{j['rule']}-{'-'.join(f'{k}={v}' for k, v in sorted(j['wildcards'].items()))}-{key}.json"
         try:
-            write_json({**j, "finished": key}, self._store / PENDING_DIR / name.replace("/", "_"))
-            print(f"amorgs.tracking: {j['rule']} finished untracked; its record waits in "
-                  f"{self._store / PENDING_DIR} for the next invocation", file=sys.stderr)
+            write_json({**j, "finished": key, "status": status, "end_ms": int(time.time() * 1000)},
+                       self._store / PENDING_DIR / name.replace("/", "_"))
+            if not self._deferred:
+                print(f"amorgs.tracking: {j['rule']} finished untracked; its record waits in "
+                      f"{self._store / PENDING_DIR} for the next invocation", file=sys.stderr)
         except Exception as exc:  # noqa: BLE001 — without a record the job would stay untracked for good
             raise SystemExit(f"amorgs.tracking: {j['rule']} finished, but neither MLflow nor {self._store / PENDING_DIR} "
                              f"could record it ({type(exc).__name__}: {exc}); the job fails so that the next "
                              "invocation reruns it") from None
 
 
-def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
-    """A child run under the current invocation, or an untracked :class:`JobRun`."""
+def _open_job_run(rule: str, wildcards: dict[str, str], store: Path, deferred: bool = False) -> JobRun:
+    """A child run under the current invocation (``deferred``: its journal, :meth:`JobRun.defer`), or an
+    untracked :class:`JobRun`."""
     inv = read_json(store / INVOCATION_FILE) if (store / INVOCATION_FILE).exists() else None
     if inv is None:
         print(f"amorgs.tracking: no MLflow invocation under {store}; {rule} runs untracked", file=sys.stderr)
         return JobRun(store)
+    identity = {
+        "config_hash": inv["config_hash"],
+        "git_commit": inv["git_commit"],
+        "git_dirty": inv["git_dirty"],
+        "host": socket.gethostname(),
+        **package_versions(),
+    }
+    if deferred:
+        return JobRun(store).defer(rule, wildcards, identity)
     if inv["tracking_uri"] == tracking_uri(store) and not (store / DB_NAME).exists():
         print(f"amorgs.tracking: the MLflow store under {store} is gone; {rule} runs untracked", file=sys.stderr)
         return JobRun(store).expect(rule, wildcards, lost=True)
@@ -555,11 +597,7 @@ def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
             "rule": rule,
             "wildcards": json.dumps(wildcards, sort_keys=True),
             **{f"wildcard.{k}": str(v) for k, v in wildcards.items()},
-            "config_hash": inv["config_hash"],
-            "git_commit": inv["git_commit"],
-            "git_dirty": inv["git_dirty"],
-            "host": socket.gethostname(),
-            **package_versions(),
+            **identity,
         }
         name = " ".join([rule, *(f"{k}={v}" for k, v in wildcards.items())])
         with _locked(store):
@@ -571,15 +609,17 @@ def _open_job_run(rule: str, wildcards: dict[str, str], store: Path) -> JobRun:
 
 
 @contextmanager
-def job_run(rule: str, wildcards: dict[str, str], store_dir: str | Path = STORE_DIR) -> Iterator[JobRun]:
-    """The child run of one job under the current invocation's parent run.
+def job_run(rule: str, wildcards: dict[str, str], store_dir: str | Path = STORE_DIR,
+            deferred: bool = False) -> Iterator[JobRun]:
+    """The child run of one job under the current invocation's parent run (``deferred``: written from the job's
+    journal when the invocation ends, :meth:`JobRun.defer` — for jobs of seconds, which MLflow would slow 4×).
 
     Untracked (every :class:`JobRun` method a no-op) when there is no ``invocation.json`` (tracking disabled)
     or no database (the store was removed), or when MLflow fails.  The run ends FINISHED; KILLED if the job is
     interrupted (SIGINT, or SIGTERM, which raises :class:`Killed` here; the process exits 128 + signal); FAILED
     if it raises anything else.
     """
-    with _closing(_open_job_run(rule, wildcards, Path(store_dir))) as job:
+    with _closing(_open_job_run(rule, wildcards, Path(store_dir), deferred)) as job:
         yield job
 
 

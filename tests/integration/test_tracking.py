@@ -168,6 +168,54 @@ def test_a_job_whose_tracking_failed_is_recorded_by_the_next_invocation(tmp_path
             run.log_metrics({"loss": 1.0})
 
 
+DEFERRED_JOB = textwrap.dedent("""
+    import sys
+    from pathlib import Path
+    from amorgs import tracking
+    store, fail = Path(sys.argv[1]), sys.argv[2] == "fail"
+    with tracking.job_run("merge", {"problem": "dejong", "alpha": "0.000"}, store, deferred=True) as run:
+        run.log_params({"problem": "dejong", "library": {"enabled": False}})
+        run.log_metrics({"rows": 200, "converged": 186})
+        run.log_artifact(store.parent / "table.txt", "tables")
+        assert "mlflow" not in sys.modules, "a deferred job imported mlflow"
+        if fail:
+            raise RuntimeError("boom")
+""")
+
+
+def test_a_deferred_job_never_loads_mlflow_and_its_run_is_written_when_the_invocation_ends(tmp_path):
+    """A short job (deferred_tracking) keeps its record instead of opening a run — mlflow is never imported in
+    its process — and finish_invocation writes one child run per record with the job's own times, status,
+    params, metrics, artifacts and the invocation's identity tags; a failed job's run is FAILED."""
+    store = tmp_path / "mlflow"
+    parent = start(store)
+    (tmp_path / "table.txt").write_text("rows")
+    ok = subprocess.run([sys.executable, "-c", DEFERRED_JOB, str(store), "ok"], capture_output=True, text=True, env=ENV)
+    assert ok.returncode == 0, ok.stderr
+    failed = subprocess.run([sys.executable, "-c", DEFERRED_JOB, str(store), "fail"], capture_output=True, text=True,
+                            env=ENV)
+    assert failed.returncode != 0 and "boom" in failed.stderr
+    records = sorted((store / tracking.PENDING_DIR).glob("*.json"))
+    assert len(records) == 2
+    client = MlflowClient(tracking.tracking_uri(store))
+    assert children(client, parent) == []  # nothing written by the jobs themselves
+
+    tracking.finish_invocation("FINISHED", store)
+    assert not list((store / tracking.PENDING_DIR).glob("*.json"))
+    runs = sorted(children(client, parent), key=lambda r: r.info.start_time)
+    assert [r.info.status for r in runs] == ["FINISHED", "FAILED"]
+    for run, record in zip(runs, records):
+        assert run.data.tags["deferred"] == "true" and "recorded_late" not in run.data.tags
+        assert run.data.tags["rule"] == "merge" and run.data.tags["wildcard.alpha"] == "0.000"
+        assert run.data.tags["config_hash"] == "abc123" and "version.mlflow" in run.data.tags
+        assert run.data.params == {"problem": "dejong", "library.enabled": "False"}
+        assert run.data.metrics == {"rows": 200.0, "converged": 186.0}
+        assert [a.path for a in client.list_artifacts(run.info.run_id, "tables")] == ["tables/table.txt"]
+        assert 0 <= run.info.end_time - run.info.start_time < 60_000  # the job's own times, not the recording's
+    assert client.get_run(parent).info.status == "FINISHED"
+    assert [j["status"] for j in tracking.tracked_jobs(store)["jobs"]].count("FINISHED") == 1
+
+
 def test_the_next_invocation_closes_runs_left_running_by_kill_9(tmp_path):
     store = tmp_path / "mlflow"
     parent = start(store)

@@ -64,14 +64,18 @@ def test_every_problem_is_one_line_naming_file_and_key(tmp_path):
     assert len(lines) == 6 and "seed" not in msg.replace("sed", "")  # a key left out takes its default
 
 
-def test_the_defaults_are_the_main_job_but_for_its_bounded_training():
-    """config/default.yaml is the typed defaults but for bounded training (issue 40 §3): a capped per-α sample and
-    early stopping — the typed defaults, which every other config starts from, train on everything."""
+def test_the_defaults_are_the_main_job_but_for_its_bounded_run():
+    """config/default.yaml is the typed defaults but for a bounded run (issue 40): a fixed slice of the library per
+    α, capped per-α training samples and early stopping — the typed defaults, which every other config starts
+    from, read and train on everything."""
     assert overrides("default") == {
-        "cr3bp_models": {"max_rows_per_alpha": 600, "validation_fraction": 0.1, "patience": 30}}
+        "problems": {"cr3bp": {"library": {"max_rows_per_alpha": 2000}}},
+        "cr3bp_models": {"max_rows_per_alpha": 600, "validation_fraction": 0.1, "patience": 30},
+        "dejong_cvae": {"max_rows_per_alpha": 40}}
     typed = C.Config()
     assert typed.cr3bp_models.max_rows_per_alpha is None and typed.cr3bp_models.patience == 0
-    assert typed.dejong_cvae.patience == 0
+    assert typed.problems.cr3bp.library.max_rows_per_alpha is None
+    assert typed.dejong_cvae.patience == 0 and typed.dejong_cvae.max_rows_per_alpha is None
     assert C.Config() == C.from_mapping({})
     assert C.defaults() == C.Config().model_dump(mode="json")
     assert load("default").ablation.samplers == C.Config().ablation.samplers  # every arm of the table
@@ -248,8 +252,11 @@ def test_hash_is_stable_and_sensitive():
 #: study 99f6bcf284ca, study-paper f446678cf96d, paper a7edb7f1dc16.  The section ``global_search`` (issue 41:
 #: off by default, on in smoke) added its keys: before it default 2535374921a9, smoke bb702dabd54e, study
 #: b393108e152d, study-paper 9b7c46269e8b, paper 760b6dc0b88d (no solver options changed).
-HASHES = {"default": "c56031089737", "smoke": "748a4f977337", "study": "1afb23932539",
-          "study-paper": "443d07aa265e", "paper": "6cde77f2a1dd"}
+#: ``dejong_cvae.max_rows_per_alpha`` (issue 40 §3, off by default) added a key, and default.yaml turned it on and
+#: capped its library slice (problems.cr3bp.library.max_rows_per_alpha: 2000): before, default c56031089737, smoke
+#: 748a4f977337, study 1afb23932539, study-paper 443d07aa265e, paper 6cde77f2a1dd (no solver options changed).
+HASHES = {"default": "3b04e27f0302", "smoke": "90ebe7692314", "study": "05a25f4c231a",
+          "study-paper": "15c9a161e209", "paper": "d674604d81e4"}
 
 
 @pytest.mark.parametrize("name", HASHES)

@@ -10,10 +10,10 @@ import pytest
 import torch
 from cr3bp_synthetic import synthetic_hq
 
+from amorgs.alphas import cap_per_alpha
 from amorgs.models.cr3bp_models import (
     PRESETS,
     TRAINERS,
-    cap_per_alpha,
     lstm_config,
     stored_from_vanilla,
     stored_vectors,

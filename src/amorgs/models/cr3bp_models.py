@@ -120,19 +120,6 @@ def subsample(hq: pd.DataFrame, fraction: float, seed: int) -> pd.DataFrame:
     return hq.loc[keep].reset_index(drop=True)
 
 
-def cap_per_alpha(hq: pd.DataFrame, max_rows: int | None, seed: int) -> pd.DataFrame:
-    """At most ``max_rows`` rows of every α — a seeded sample where an α holds more, every row where it holds
-    fewer (stratified by α: a crowded α does not crowd out the others); order kept, index reset.  ``None``
-    returns ``hq`` whole."""
-    if max_rows is None:
-        return hq
-    rng = np.random.default_rng([seed, 40])
-    keep = np.zeros(len(hq), dtype=bool)
-    for rows in hq.groupby("alpha", sort=True).indices.values():
-        keep[rows if len(rows) <= max_rows else rng.choice(rows, size=max_rows, replace=False)] = True
-    return hq.loc[keep].reset_index(drop=True)
-
-
 def _alpha(hq: pd.DataFrame) -> np.ndarray:
     return hq["alpha"].to_numpy(dtype=np.float64, copy=True)
 

@@ -136,7 +136,9 @@ class Family:
     ``alpha_range`` is the inclusive range of α in ``alpha_unit``; ``options_type`` the typed options of its
     local solver (:mod:`amorgs.solvers.options`; its defaults are the family's default solver options);
     ``quality_type`` its :class:`QualityFilter` (its defaults are the family's default thresholds, e.g. β);
-    ``build`` makes the problem (a zero-argument callable that imports what the problem needs only when called).
+    ``build`` makes the problem (a zero-argument callable that imports what the problem needs only when called);
+    ``quick_solves``: a local solve takes milliseconds, so a generate job of it does seconds of work and its
+    MLflow run is written when the workflow ends (:attr:`amorgs.steps.Step.deferred_tracking`).
     """
 
     name: str
@@ -145,3 +147,4 @@ class Family:
     options_type: type
     quality_type: type[QualityFilter]
     build: Callable[[], Problem]
+    quick_solves: bool = False

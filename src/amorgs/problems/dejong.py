@@ -209,4 +209,4 @@ class DejongFilter(QualityFilter):
 
 
 FAMILY = Family(name=DeJong5.name, alpha_range=DeJong5.alpha_range, alpha_unit="rad", options_type=DeJong5.options_type,
-                quality_type=DejongFilter, build=DeJong5)
+                quality_type=DejongFilter, build=DeJong5, quick_solves=True)

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from amorgs import layout
-from amorgs.alphas import metric_key, rows_at_any
+from amorgs.alphas import cap_per_alpha, metric_key, rows_at_any
 from amorgs.config import Config, DejongCVAE, Section
 from amorgs.models.names import DEJONG_PRESETS
 from amorgs.steps import Job, Step, Wildcards, once_if, resources_of
@@ -46,7 +46,7 @@ def run_train(job: Job, run) -> None:
     torch.set_num_threads(job.threads)
     names = list(get_problem("dejong").variable_names)
     data, output = job.input["high_quality"], job.output["model"]
-    df = rows_at_any(pd.read_parquet(data), s.train_alphas)
+    df = cap_per_alpha(rows_at_any(pd.read_parquet(data), s.train_alphas), m.max_rows_per_alpha, m.seed)
     x = df[names].to_numpy(dtype=np.float64, copy=True)
     alpha = df["alpha"].to_numpy(dtype=np.float64, copy=True)
     cfg = TrainConfig(epochs=m.epochs, batch_size=m.batch_size, lr=m.learning_rate, seed=m.seed, device="cpu",

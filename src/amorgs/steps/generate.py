@@ -131,9 +131,11 @@ STEPS = (
     Step("generate", GenerateSettings, generate_settings, run_generate, generate_jobs,
          lambda w: {"table": layout.SHARD.format_map(w)},
          resources=lambda cfg, w: getattr(cfg.problems, w["problem"]).generate.job(),
-         description="multi-start solves of one (problem, α, shard) → shard table"),
+         description="multi-start solves of one (problem, α, shard) → shard table",
+         deferred_tracking=lambda w: FAMILIES[w["problem"]].quick_solves),
     Step("merge", MergeSettings, merge_settings, run_merge, merge_jobs,
          lambda w: {"table": layout.ALPHA_TABLE.format_map(w)},
          resources=resources_of("merge"),
-         description="the shards of one (problem, α) and its library files → α table"),
+         description="the shards of one (problem, α) and its library files → α table",
+         deferred_tracking=lambda w: True),
 )

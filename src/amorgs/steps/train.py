@@ -42,9 +42,10 @@ def run_train(job: Job, run) -> None:
     import pandas as pd
     import torch
 
+    from amorgs.alphas import cap_per_alpha
     from amorgs.data.io import atomic_path, write_json
     from amorgs.models import cvae, lstm
-    from amorgs.models.cr3bp_models import TRAINERS, cap_per_alpha, subsample
+    from amorgs.models.cr3bp_models import TRAINERS, subsample
     from amorgs.models.training import TrainConfig
 
     s: TrainSettings = job.settings
