@@ -15,6 +15,7 @@ imports happen inside the command that needs them.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -22,6 +23,7 @@ import sys
 from amorgs.ablation.arms import ARMS, REUSE_ARM
 from amorgs.analysis.structure_params import ETA
 from amorgs.config import SCHEMA_PATH
+from amorgs.design.search import STRATEGIES as DESIGN_STRATEGIES
 from amorgs.models.names import PAPER_MODELS
 from amorgs.problems import PROBLEMS
 from amorgs.problems.cr3bp import BETA_KG
@@ -159,7 +161,7 @@ def cmd_design(args: argparse.Namespace) -> None:
     if known is not None and len(result.selected):
         gaps = ", ".join(f"{g:.3f}" for g in result.selected["below_best_known_kg"])
         print(f"best known m_f at α = {args.alpha:g}: {known:.3f} kg ({result.info['best_known_source']}); the "
-              f"returned solutions are {gaps} kg below it ({args.strategy})")
+              f"returned solutions are {gaps} kg below it ({result.info.get('strategy', args.strategy)})")
     if result.found < args.n:
         print(f"amorgs design: only {result.found} of {args.n} found before the budget ran out "
               f"({result.stop_reason}); raise --max-starts / --max-cpu-s or lower -n", file=sys.stderr)
@@ -253,6 +255,7 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     texts = {f"{name}.csv": tables[name].to_csv(index=False)
              for name in ("runtime_to_target", "runtime_ecdf", "ert_ratios", "distinct", "best_known")}
     texts["runtime_to_target.md"] = readable.to_markdown() + "\n"
+    texts["study.json"] = json.dumps(study.summary(), indent=1, sort_keys=True) + "\n"
     for name, text in texts.items():
         with atomic_path(dest / name) as tmp:
             tmp.write_text(text)
@@ -263,7 +266,7 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     print(f"α = {study.alpha:g}: best known m_f {best['m_f']:.3f} kg ({best['source']}); ERT in IPOPT iterations "
           f"(95 % bootstrap), successes/searches:")
     print(readable.to_string())
-    print(f"{dest}: events.parquet, solutions.parquet, runtime_to_target.{{csv,md}}, runtime_ecdf.csv, "
+    print(f"{dest}: events.parquet, solutions.parquet, study.json, runtime_to_target.{{csv,md}}, runtime_ecdf.csv, "
           "ert_ratios.csv, distinct.csv, best_known.csv, fig_runtime_ecdf.png")
 
 
@@ -492,9 +495,11 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                         "(default 0.02 ≈ 0.8 TU of τ_s or 0.3 TU of τ_i, τ_f)")
     p.add_argument("--seed", type=int, default=0, help="seed of the warm starts; same seed, same result (default 0)")
     p.add_argument("--workers", type=int, default=2, help="solver processes (default 2)")
-    p.add_argument("--strategy", default="multistart", choices=["multistart", "mbh"],
+    p.add_argument("--strategy", default="multistart", choices=list(DESIGN_STRATEGIES),
                    help="multistart: every start from the sampler; mbh: monotonic basin hopping, each slot of a round "
-                        "a chain hopping from its best solution (docs/global-search.md)")
+                        "a chain hopping from its best solution (docs/global-search.md); auto: mbh where the committed "
+                        "global-search study nearest in α found it significantly faster to within 2 kg of the best "
+                        "known m_f from the same sampler, multistart otherwise (the choice and its evidence are printed)")
     p.add_argument("--hop", default=HOPS.distribution, help="mbh: hop distribution (pareto, cauchy, gaussian, uniform)")
     p.add_argument("--hop-scale", type=float, default=HOPS.scale, help="mbh: hop step per unit draw, fraction of the box")
     p.add_argument("--hop-shape", type=float, default=HOPS.shape, help="mbh: Pareto tail index")

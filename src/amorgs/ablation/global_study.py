@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from multiprocessing import get_context
 
 import numpy as np
@@ -56,6 +56,14 @@ class GlobalStudy:
     library_dir: str = "data/library"
     models_dir: str | None = None
     record: str = "data/best_known/cr3bp.json"
+
+    def summary(self) -> dict:
+        """What the study ran, as JSON data (``study.json`` beside its events): α, cells, searches, the budget,
+        seed, hop settings, δ and the solver options — what a reader of the events needs to recompute its
+        statistics (e.g. ``amorgs design --strategy auto``)."""
+        return {"alpha": self.alpha, "samplers": list(self.samplers), "strategies": list(self.strategies),
+                "searches": self.searches, "budget": self.budget, "seed": self.seed,
+                "hops": asdict(self.hops), "deltas": list(self.deltas), "solver": dict(self.solver)}
 
     def cells(self) -> list[Cell]:
         return [Cell(sampler=s, strategy=t, alpha=self.alpha, searches=self.searches, budget=self.budget,

@@ -81,7 +81,8 @@ def run_design(request: DesignRequest, output_dir: str | Path | None = None, tra
         if progress:  # which sampler, and why (auto: the frontier's evidence); stale shipped models
             import sys
 
-            for line in (prepared.info["sampler_choice"], prepared.info.get("models_note")):
+            for line in (prepared.info["sampler_choice"], prepared.info.get("strategy_choice"),
+                         prepared.info.get("models_note")):
                 if line:
                     print(f"amorgs design: {line}", file=sys.stderr, flush=True)
         params = {**asdict(request), "output": str(out), **prepared.info}

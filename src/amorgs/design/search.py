@@ -63,6 +63,13 @@ DEFAULT_SAMPLER = AUTO_SAMPLER
 #: The committed frontier tables (``amorgs frontier``) that ``auto`` follows: the frontier of the five arms
 #: (issue 21) and the transfer selector's folds (issue 38).
 DEFAULT_FRONTIERS = ("reference/frontier/frontier.csv", "reference/selector-frontier/frontier.csv")
+#: ``--strategy auto``: basin hopping where the committed global-search study shows it faster to the funnel bottom
+#: (:func:`resolve_strategy`); the studies it reads (``amorgs global-search --dest``: events.parquet, study.json,
+#: best_known.csv) and the target it judges by, within this many kg of the best known m_f.
+AUTO_STRATEGY = "auto"
+STRATEGIES = (AUTO_STRATEGY, "multistart", "mbh")
+DEFAULT_GLOBAL_SEARCH = "reference/global-search"
+STRATEGY_DELTA_KG = 2.0
 DEFAULT_LIBRARY_DIR = "data/library"
 DEFAULT_MODELS_DIR = "data/models/cr3bp"
 DEFAULT_CONFIG = "config/default.yaml"
@@ -143,8 +150,8 @@ class DesignRequest:
             raise ConfigError(f"--max-starts {self.max_starts}: the budget must allow at least 1 start")
         if not (self.max_cpu_s > 0 and not math.isnan(self.max_cpu_s)):
             raise ConfigError(f"--max-cpu-s {self.max_cpu_s}: the CPU budget must be > 0 seconds")
-        if self.strategy not in ("multistart", "mbh"):
-            raise ConfigError(f"--strategy {self.strategy!r}: choose multistart or mbh")
+        if self.strategy not in STRATEGIES:
+            raise ConfigError(f"--strategy {self.strategy!r}: choose {', '.join(STRATEGIES)}")
         try:
             self.hops()
         except ValueError as exc:
@@ -345,6 +352,50 @@ def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
     return replace(request, sampler=choice.sampler), f"sampler {choice.sampler} (--sampler auto): {choice.reason}"
 
 
+def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBAL_SEARCH) -> tuple[DesignRequest, str]:
+    """``request`` with ``--strategy auto`` replaced by what the committed global-search study nearest in α says
+    (``studies``/alpha=*/: events.parquet, study.json, best_known.csv), and one line saying which and why: ``mbh``
+    if monotonic basin hopping from the request's sampler (its resolved arm, or ``uniform`` where the study has
+    no cell of it) reached within :data:`STRATEGY_DELTA_KG` of the best known m_f in significantly fewer IPOPT
+    iterations than multi-start from the same sampler (ERT ratio's bootstrap 95 % interval below 1, the study's
+    own budget, seed and target), ``multistart`` otherwise or without a study.  Any other strategy is kept."""
+    from dataclasses import replace
+
+    if request.strategy != AUTO_STRATEGY:
+        return request, f"strategy {request.strategy} (--strategy)"
+    from amorgs.ablation.global_search import ert_ratios
+    from amorgs.data.io import read_json
+
+    found = [d for d in sorted(Path(studies).glob("alpha=*"))
+             if all((d / n).is_file() for n in ("events.parquet", "study.json", "best_known.csv"))]
+    if not found:
+        return (replace(request, strategy="multistart"),
+                f"strategy multistart (--strategy auto): no global-search study under {studies}, multi-start by default")
+    settings = {d: read_json(d / "study.json") for d in found}
+    where = min(found, key=lambda d: (abs(settings[d]["alpha"] - request.alpha), str(d)))
+    study = settings[where]
+    events = pd.read_parquet(where / "events.parquet")
+    sampler = request.sampler if request.sampler in set(events["sampler"]) else "uniform"
+    cells = set(zip(events["strategy"], events["sampler"]))
+    head = f"at α = {study['alpha']:g} ({where})"
+    if not {("multistart", sampler), ("mbh", sampler)} <= cells:
+        return (replace(request, strategy="multistart"),
+                f"strategy multistart (--strategy auto): {head} holds no multistart and mbh cells of {sampler}")
+    best = -float(pd.read_csv(where / "best_known.csv")["m_f"].iloc[0])
+    ratios = ert_ratios(events[events["sampler"] == sampler], best, deltas=(STRATEGY_DELTA_KG,),
+                        baseline=("multistart", sampler), seed=study["seed"], budget=study["budget"])
+    row = ratios[ratios["strategy"] == "mbh"].iloc[0]
+    faster = bool(row["ratio_hi"] < 1)
+    evidence = (f"{head}, MBH × {sampler} reached within {STRATEGY_DELTA_KG:g} kg of the best known m_f in "
+                f"{row['ratio']:.2f}× multi-start's iterations (95 % {row['ratio_lo']:.2f}–{row['ratio_hi']:.2f}, "
+                f"{study['searches']} searches of {study['budget']} each)")
+    if faster:
+        return replace(request, strategy="mbh"), f"strategy mbh (--strategy auto): {evidence}"
+    return (replace(request, strategy="multistart"),
+            f"strategy multistart (--strategy auto): {evidence} — not significantly faster (MBH does find more "
+            "near-best alternatives: --strategy mbh)")
+
+
 def check_inputs_present(request: DesignRequest) -> None:
     """:class:`InputError` naming the file if an input of the requested sampler is missing: a checkpoint it
     loads, or the library's manifest (a library with files but no manifest is named as such).  Only presence
@@ -499,6 +550,7 @@ def prepare(request: DesignRequest, start_workers: bool = True) -> Prepared:
         raise InputError(f"{request.config}: config file not found (--config)")
     cfg = load_config(request.config)
     request, choice = resolve_sampler(request, cfg)
+    request, strategy_choice = resolve_strategy(request)
     problem = get_problem(PROBLEM)
     check_beta(request.beta_kg, problem)
     check_inputs_present(request)
@@ -512,6 +564,7 @@ def prepare(request: DesignRequest, start_workers: bool = True) -> Prepared:
         raise
     info["solver_options"] = solver_options.to_dict()
     info["sampler_choice"] = choice
+    info["strategy"], info["strategy_choice"] = request.strategy, strategy_choice
     return Prepared(cfg, solver_options, problem, sampler, info, pool)
 
 
@@ -542,6 +595,10 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
             from dataclasses import replace
 
             request = replace(request, sampler=info["sampler"])
+        if request.strategy == AUTO_STRATEGY:  # and the strategy
+            from dataclasses import replace
+
+            request = replace(request, strategy=info["strategy"])
         rng = np.random.default_rng(request.seed)
         chains = None
         if request.strategy == "mbh":

@@ -1,0 +1,65 @@
+"""``amorgs design --strategy auto``: the strategy follows the committed global-search study nearest in α."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from amorgs.config import ConfigError
+from amorgs.design.search import DEFAULT_GLOBAL_SEARCH, DesignRequest, resolve_strategy
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def study(folder: Path, alpha: float, hit: dict[str, int], searches: int = 12, budget: int = 10_000) -> Path:
+    """A global-search study folder whose searches of each strategy (from ``uniform``) first come within 1 kg of
+    the best known m_f (440 kg) after ``hit[strategy]`` iterations, then spend the rest of the budget."""
+    rows = []
+    for strategy, at in hit.items():
+        for r in range(searches):
+            at_r = at + 10 * r
+            rows += [{"sampler": "uniform", "strategy": strategy, "alpha": alpha, "search": r,
+                      "cumulative_iterations": at_r, "best_objective": -439.5},
+                     {"sampler": "uniform", "strategy": strategy, "alpha": alpha, "search": r,
+                      "cumulative_iterations": budget, "best_objective": -439.5}]
+    folder.mkdir(parents=True)
+    pd.DataFrame(rows).to_parquet(folder / "events.parquet")
+    (folder / "study.json").write_text(json.dumps({"alpha": alpha, "searches": searches, "budget": budget, "seed": 0}))
+    pd.DataFrame({"alpha": [alpha], "m_f": [440.0], "source": ["test"]}).to_csv(folder / "best_known.csv", index=False)
+    return folder
+
+
+def request(**kw) -> DesignRequest:
+    return DesignRequest(**{"alpha": 0.42, "n": 5, "sampler": "uniform", "strategy": "auto", **kw})
+
+
+def test_auto_takes_basin_hopping_only_where_the_nearest_study_found_it_significantly_faster(tmp_path):
+    study(tmp_path / "alpha=0.300", 0.3, {"multistart": 4000, "mbh": 200})  # hopping 20× faster
+    study(tmp_path / "alpha=0.900", 0.9, {"multistart": 300, "mbh": 300})  # no difference
+    chosen, why = resolve_strategy(request(alpha=0.35), tmp_path)
+    assert chosen.strategy == "mbh" and "alpha=0.300" in why and "95 %" in why
+    chosen, why = resolve_strategy(request(alpha=0.8), tmp_path)
+    assert chosen.strategy == "multistart" and "alpha=0.900" in why and "not significantly faster" in why
+    # a sampler the study has no cells of is judged on uniform, and says so
+    chosen, why = resolve_strategy(request(alpha=0.35, sampler="amorgs"), tmp_path)
+    assert chosen.strategy == "mbh" and "MBH × uniform" in why
+    # no study: multi-start; a strategy given is kept
+    assert resolve_strategy(request(), tmp_path / "none")[0].strategy == "multistart"
+    assert resolve_strategy(request(strategy="mbh"), tmp_path / "none") == (request(strategy="mbh"),
+                                                                            "strategy mbh (--strategy)")
+
+
+def test_auto_on_the_committed_study_is_multistart_with_its_evidence(monkeypatch):
+    """What docs/global-search.md says: at α = 0.3 hopping is not significantly faster to within 2 kg."""
+    monkeypatch.chdir(ROOT)
+    for sampler in ("uniform", "nearest_alpha"):
+        chosen, why = resolve_strategy(request(sampler=sampler), DEFAULT_GLOBAL_SEARCH)
+        assert chosen.strategy == "multistart" and f"MBH × {sampler}" in why and "alpha=0.300" in why
+
+
+def test_an_unknown_strategy_is_refused_naming_the_choices():
+    with pytest.raises(ConfigError, match="--strategy 'hop'.*auto, multistart, mbh"):
+        request(strategy="hop").check()
