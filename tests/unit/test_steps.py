@@ -102,3 +102,27 @@ def test_a_workflow_that_reads_a_missing_library_is_refused_naming_the_key(tmp_p
         steps.check_libraries(from_mapping(data, "test"))
     data["problems"]["cr3bp"]["library"]["enabled"] = False
     steps.check_libraries(from_mapping(data, "test"))  # nothing to read, nothing to check
+
+
+def test_only_short_jobs_defer_their_mlflow_run():
+    """Merges and small shards of a quick-solve family (De Jong) leave their run to the invocation's end; a large
+    De Jong shard (seen RUNNING while it works) and every CR3BP shard open their own."""
+    from amorgs.steps import job_settings, registry
+    from amorgs.steps.generate import QUICK_SHARD_STARTS
+
+    cfg = load("default")
+    steps = registry()
+
+    def deferred(rule, w):
+        step = steps[rule]
+        return step.deferred_tracking(step.settings_type.model_validate(job_settings(rule, cfg, w)))
+
+    assert deferred("generate", {"problem": "dejong", "alpha": "0.000", "shard": "0"})
+    assert cfg.problems.dejong.generate.starts_per_shard <= QUICK_SHARD_STARTS
+    assert not deferred("generate", {"problem": "cr3bp", "alpha": "0.100", "shard": "0"})
+    assert deferred("merge", {"problem": "cr3bp", "alpha": "0.100"})
+    big = steps["generate"].settings_type.model_validate(
+        {**job_settings("generate", cfg, {"problem": "dejong", "alpha": "0.000", "shard": "0"}),
+         "starts": QUICK_SHARD_STARTS + 1})
+    assert not steps["generate"].deferred_tracking(big)
+    assert not any(steps[r].deferred_tracking(None) for r in ("train_cr3bp", "ablation_cell", "filter"))

@@ -137,8 +137,8 @@ class Family:
     local solver (:mod:`amorgs.solvers.options`; its defaults are the family's default solver options);
     ``quality_type`` its :class:`QualityFilter` (its defaults are the family's default thresholds, e.g. β);
     ``build`` makes the problem (a zero-argument callable that imports what the problem needs only when called);
-    ``quick_solves``: a local solve takes milliseconds, so a generate job of it does seconds of work and its
-    MLflow run is written when the workflow ends (:attr:`amorgs.steps.Step.deferred_tracking`).
+    ``quick_solves``: a local solve takes milliseconds, so a generate job of a small shard of it does seconds of work
+    and its MLflow run is written when the workflow ends (:attr:`amorgs.steps.Step.deferred_tracking`).
     """
 
     name: str

@@ -12,7 +12,7 @@ A step says, for one rule:
   validates it again before doing anything;
 - ``run(job, run)``: the work, given a :class:`Job` (wildcards, named inputs and outputs, threads, settings)
   and its MLflow child run (:class:`amorgs.tracking.JobRun`);
-- ``deferred_tracking(wildcards)``: whether a job is so short (a merge, a De Jong shard) that its MLflow run is
+- ``deferred_tracking(settings)``: whether a job is so short (a merge, a small De Jong shard) that its MLflow run is
   written when the invocation ends, from what the job logged (:mod:`amorgs.tracking`), not opened by the job;
 - ``jobs(cfg)``: the wildcards of every job of this rule that a complete run of ``cfg`` executes, and
   ``outputs(wildcards)``: the named outputs of one job (path templates of :mod:`amorgs.layout`).  From these
@@ -75,9 +75,9 @@ class Step:
     #: (caption file under workflow/report/ without .rst, category) of the figures in ``snakemake --report``.
     report: tuple[str, str] | None = None
     description: str = field(default="")
-    #: Whether a job (of these wildcards) does seconds of work, so that its MLflow run is written from its journal
+    #: Whether a job (of these settings) does seconds of work, so that its MLflow run is written from its journal
     #: when the invocation ends instead of by the job (``tracking.job_run(deferred=True)``: ≈ 4.5 s less a job).
-    deferred_tracking: Callable[[Wildcards], bool] = field(default=lambda wildcards: False)
+    deferred_tracking: Callable[[Any], bool] = field(default=lambda settings: False)
 
 
 def resources_of(key: str) -> Callable[[Config, Wildcards], JobResources]:
@@ -260,7 +260,7 @@ def run_job(spec_json: str) -> None:
     step = get_step(rule)
     settings = step.settings_type.model_validate(spec["settings"])
     job = Job(rule, dict(spec["wildcards"]), spec["input"], spec["output"], int(spec["threads"]), settings)
-    with tracking.job_run(rule, job.wildcards, deferred=step.deferred_tracking(job.wildcards)) as run:
+    with tracking.job_run(rule, job.wildcards, deferred=step.deferred_tracking(settings)) as run:
         lifeline.watch_workflow()
         run.log_params(settings.model_dump(mode="json"))
         step.run(job, run)

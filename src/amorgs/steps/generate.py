@@ -16,6 +16,12 @@ from amorgs.solvers.options import as_options
 from amorgs.steps import Job, Step, Wildcards, resources_of
 
 
+#: A shard of a family with quick solves (``Family.quick_solves``) and at most this many starts does seconds of
+#: work (De Jong: ≈ 1.6 s of solving per 300 starts), so its MLflow run is deferred (:attr:`Step.deferred_tracking`);
+#: a larger shard opens its run while it works, so that it is seen RUNNING.
+QUICK_SHARD_STARTS = 500
+
+
 class GenerateSettings(Section):
     """One shard: ``starts`` uniform starts at the exact ``alpha`` with ``seed`` (derived from the config's
     base seed, the problem, α and the shard index) and the problem's solver options (validated as its family's
@@ -132,10 +138,10 @@ STEPS = (
          lambda w: {"table": layout.SHARD.format_map(w)},
          resources=lambda cfg, w: getattr(cfg.problems, w["problem"]).generate.job(),
          description="multi-start solves of one (problem, α, shard) → shard table",
-         deferred_tracking=lambda w: FAMILIES[w["problem"]].quick_solves),
+         deferred_tracking=lambda s: FAMILIES[s.problem].quick_solves and s.starts <= QUICK_SHARD_STARTS),
     Step("merge", MergeSettings, merge_settings, run_merge, merge_jobs,
          lambda w: {"table": layout.ALPHA_TABLE.format_map(w)},
          resources=resources_of("merge"),
          description="the shards of one (problem, α) and its library files → α table",
-         deferred_tracking=lambda w: True),
+         deferred_tracking=lambda s: True),
 )
