@@ -591,14 +591,10 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
         pool = prepared.pool or stack.enter_context(WorkerPool(problem, pool_size(request), solver_options,
                                                                alpha=request.alpha))
         info = dict(prepared.info)
-        if request.sampler == AUTO_SAMPLER:  # the result names the sampler that ran
+        if request.sampler == AUTO_SAMPLER or request.strategy == AUTO_STRATEGY:  # the result names what ran
             from dataclasses import replace
 
-            request = replace(request, sampler=info["sampler"])
-        if request.strategy == AUTO_STRATEGY:  # and the strategy
-            from dataclasses import replace
-
-            request = replace(request, strategy=info["strategy"])
+            request = replace(request, sampler=info["sampler"], strategy=info["strategy"])
         rng = np.random.default_rng(request.seed)
         chains = None
         if request.strategy == "mbh":
