@@ -2,7 +2,7 @@
 
 Two workflow runs of the same config but for the CR3BP models' training budget — ``--bounded`` (the default
 config: ≤ 600 rows per training α, early stopping) and ``--full`` (every row, every epoch: the same run
-re-trained with ``--config cr3bp_models='{max_rows_per_alpha: null, validation_fraction: 0, patience: 0}'``) —
+re-trained with ``--config "cr3bp_models={max_rows_per_alpha: 1000000, validation_fraction: 0.0, patience: 0}"``) —
 have the same ablation cells: the same test α, arms, seeds and starts per arm; only the learned arms' samples
 differ.  For every learned arm and test α this prints the high-quality counts and aRT (IPOPT iterations per
 high-quality solution) of both runs and aRT(bounded) ÷ aRT(full) with a percentile bootstrap 95 % interval over

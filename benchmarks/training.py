@@ -1,6 +1,6 @@
 """Training cost of the CR3BP models: wall seconds per epoch, per model and preset, on the library.
 
-The three models of the ablation (``amorgs.models.cr3bp_models.TRAINERS``: the GMM-prior CVAE, the vanilla
+The three models of the ablation (their trainers in the model table ``amorgs.models.names.MODELS``: the GMM-prior CVAE, the vanilla
 CVAE, the control LSTM) are trained for a few epochs each on the high-quality rows (m_f ≥ β = 415 kg) of the
 training α of the library (default data/library), at the ``small`` and ``paper`` widths (Tables 4–5), with
 the given batch size and torch thread count; the median epoch time is reported, the first epoch (warm-up)
@@ -27,7 +27,7 @@ import torch
 
 from amorgs.config import load_config
 from amorgs.data.library import read_library, read_manifest
-from amorgs.models import cr3bp_models
+from amorgs.models.names import get_model
 from amorgs.models.lstm import ControlLSTM
 from amorgs.models.training import TrainConfig
 
@@ -44,7 +44,7 @@ def torch_lstm_recurrence(self: ControlLSTM, h: torch.Tensor) -> torch.Tensor:
 
 def seconds_per_epoch(name: str, hq: pd.DataFrame, preset: str, cfg: TrainConfig) -> float:
     times: list[float] = []
-    cr3bp_models.TRAINERS[name](hq, preset, cfg, lambda epoch, metrics: times.append(metrics["epoch_s"]))
+    get_model(name).train(hq, preset, cfg, lambda epoch, metrics: times.append(metrics["epoch_s"]))
     return statistics.median(times[1:])
 
 

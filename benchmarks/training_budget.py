@@ -1,7 +1,7 @@
 """Bounded training (issue 40 §3): what a capped, seeded per-α sample and early stopping save, and what they cost
 in model quality — paired, the same data and seeds, one process.
 
-CR3BP: each of the paper's three models (``amorgs.models.cr3bp_models.TRAINERS``) is trained twice on the
+CR3BP: each of the paper's three models (their trainers in the model table, ``amorgs.models.names.MODELS``) is trained twice on the
 high-quality rows (m_f ≥ β) of the training α of ``--config`` read from the library: ``full`` (every row, every
 epoch of the config: the typed defaults) and ``bounded`` (at most ``--cap`` rows per α, ``--validation`` held out,
 ``--patience``). Quality: the model's own loss (negative ELBO per row for the CVAEs, the control MSE for the
@@ -34,6 +34,7 @@ from amorgs.alphas import cap_per_alpha, rows_at_any
 from amorgs.config import load_config
 from amorgs.data.library import read_library
 from amorgs.models import cr3bp_models as cm
+from amorgs.models.names import get_model
 from amorgs.models.lstm import cartesian_controls
 from amorgs.models.training import TrainConfig, _validation_loss
 
@@ -80,7 +81,7 @@ def cr3bp_rows(args, cfg) -> list[dict]:
             tc = TrainConfig(epochs=m.epochs, batch_size=m.batch_size, lr=m.learning_rate, seed=m.seed, device="cpu",
                              progress_every=0, validation_fraction=args.validation if bounded else 0.0,
                              patience=args.patience if bounded else 0)
-            model, cpu_s, ran = trained(cm.TRAINERS[name], data, m.preset, tc)
+            model, cpu_s, ran = trained(get_model(name).train, data, m.preset, tc)
             rows.append({"problem": "cr3bp", "model": name, "variant": variant, "rows": len(data), "epochs run": ran,
                          "CPU s": round(cpu_s, 1), "test-α loss": f"{test_loss(model, name, truth):.5g}"})
             print(rows[-1], flush=True)

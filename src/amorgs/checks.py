@@ -17,14 +17,12 @@ from pathlib import Path
 import pandas as pd
 
 from amorgs import layout, steps
+from amorgs.ablation.studies import OPTIONAL_STEMS
 from amorgs.config import Config
 from amorgs.data.tables import validate_solutions
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: Ablation tables a config may leave empty (ablation.iteration_caps, break_even_solutions, fraction_samplers,
-#: cr3bp_models.extra_seeds, no reuse arm in ablation.samplers).
-OPTIONAL_ABLATION_TABLES = ("ablation_iteration_capped", "ablation_break_even", "ablation_learning_curve",
-                            "ablation_seeds", "ablation_reuse_pool")
+
 
 
 def _check_file(path: str) -> str | None:
@@ -40,7 +38,7 @@ def _check_file(path: str) -> str | None:
             data = json.loads(p.read_text())
             if path == layout.ABLATION_SUMMARY and not any(k.startswith("aRT_iterations/") for k in data):
                 return f"{path}: no expected-running-time metrics (aRT_iterations/*)"
-        if p.suffix == ".csv" and Path(path).stem in OPTIONAL_ABLATION_TABLES:
+        if p.suffix == ".csv" and Path(path).stem in OPTIONAL_STEMS:
             pass  # empty when the config asks for none of it (no caps, no break-even, no learning curve)
         elif p.suffix == ".csv" and Path(path).name.startswith("ablation_"):
             df = pd.read_csv(p)

@@ -69,15 +69,7 @@ ABLATION_FIGURES = (
     "fig21_solve_time_histograms", "fig22_capped_convergence", "fig23_amorgs_diversity",
     "fig22_iteration_capped", "ablation_speedups", "ablation_beta_sweep", "ablation_anytime",
 )
-#: The issue-11 and issue-21 statistics tables, each written as <name>.csv and <name>.md (anytime: CSV only).
-ABLATION_STAT_TABLES = ("ablation_rates", "ablation_beta_sweep", "ablation_ert", "ablation_ert_distinct",
-                        "ablation_reuse_pool", "ablation_iteration_capped", "ablation_break_even",
-                        "ablation_learning_curve", "ablation_seeds")
-ABLATION_TABLES = (
-    "table6.csv", "table6.md", "ablation_capped.csv", "ablation_coverage.csv",
-    *(f"{n}.{ext}" for n in ABLATION_STAT_TABLES for ext in ("csv", "md")), "ablation_anytime.csv",
-    "ablation_anytime_bands.csv",
-)
+#: The ablation report's tables: one per study of :data:`amorgs.ablation.studies.STUDIES` (its ``table_files``).
 
 
 def fraction_label(fraction: float) -> str:

@@ -226,6 +226,7 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     from amorgs.errors import InputError
     from amorgs.figures.global_search import fig_runtime_ecdf
     from amorgs.solvers.basin_hopping import HopSettings
+    from amorgs.solvers.options import IpoptOptions
 
     dest = Path(args.dest)
     check_writable_folder(dest, "--dest")
@@ -235,7 +236,7 @@ def cmd_global_search(args: argparse.Namespace) -> None:
         raise InputError(f"--hop: {exc}") from None
     study = GlobalStudy(alpha=args.alpha, samplers=tuple(args.samplers), strategies=tuple(args.strategies),
                         searches=args.searches, budget=args.budget, seed=args.seed, hops=hops, deltas=tuple(args.deltas),
-                        solver={"max_iter": args.max_iter}, library_dir=args.library_dir, models_dir=args.models_dir)
+                        solver=IpoptOptions(max_iter=args.max_iter), library_dir=args.library_dir, models_dir=args.models_dir)
     if args.from_events:
         import pandas as pd
 

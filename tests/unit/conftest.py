@@ -15,11 +15,11 @@ def tiny_hq():
 @pytest.fixture(scope="session")
 def tiny_models(one_torch_thread, tiny_hq):
     """Every CR3BP model (``small`` preset), trained 5 full-batch epochs on :func:`tiny_hq`."""
-    from amorgs.models.cr3bp_models import TRAINERS
+    from amorgs.models.names import MODELS
     from amorgs.models.training import TrainConfig
 
     brief = TrainConfig(epochs=5, batch_size=1024, lr=5e-3, seed=0, device="cpu")
-    return {**{name: train(tiny_hq, "small", brief) for name, train in TRAINERS.items()},
+    return {**{m.name: m.train(tiny_hq, "small", brief) for m in MODELS},
             "selector": tiny_selector(tiny_hq)}
 
 
@@ -46,9 +46,7 @@ def tiny_selector(hq):
 @pytest.fixture(scope="session")
 def tiny_models_dir(tiny_models, tmp_path_factory):
     """:func:`tiny_models` saved as checkpoints, named as the train step names them."""
-    from amorgs.models import cvae, lstm
-    from amorgs.models.samplers import CHECKPOINTS
-
+    from amorgs.models.names import get_model
     from amorgs.models.selector import SELECTOR_FILE
 
     d = tmp_path_factory.mktemp("models")
@@ -56,5 +54,6 @@ def tiny_models_dir(tiny_models, tmp_path_factory):
         if name == "selector":
             model.save(d / SELECTOR_FILE)
         else:
-            (lstm.save if name == "lstm" else cvae.save)(model, d / CHECKPOINTS[name])
+            entry = get_model(name)
+            entry.save(model, d / entry.checkpoint)
     return d

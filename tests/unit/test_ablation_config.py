@@ -10,6 +10,7 @@ from config_files import load, mapping, write
 from amorgs import config as C
 from amorgs import layout, steps
 from amorgs.ablation.arms import DEFAULT_SAMPLER_NAMES, SAMPLER_NAMES
+from amorgs.ablation.studies import table_files
 
 #: The arms of the committed studies (reference/study*): every arm but issue 21's continuation, which came later.
 #: The committed study's arms: every arm of its time (the arms of issue 21 came later).
@@ -181,7 +182,7 @@ def test_ablation_report_step_writes_every_declared_output(tmp_path, monkeypatch
     assert (distinct["k_distinct"] <= distinct["k_high_quality"]).all() and (distinct["eta"] == 0.02).all()
     table6 = pd.read_csv(f"{t}/table6.csv")
     assert (table6["n"] == 8).all()  # the learning-curve cells stay out of the main tables
-    for name in layout.ABLATION_TABLES:
+    for name in table_files():
         assert (tmp_path / t / name).stat().st_size > 0, name
     for name in layout.ABLATION_FIGURES:
         assert (tmp_path / "results/figures" / f"{name}.png").read_bytes().startswith(b"\x89PNG"), name
@@ -189,4 +190,4 @@ def test_ablation_report_step_writes_every_declared_output(tmp_path, monkeypatch
     assert "aRT_iterations/alpha_0.850/nearest_alpha" in summary and "itcap_percent/alpha_0.150/amorgs/cap_50" in summary
     from amorgs.checks import _check_file
 
-    assert [m for m in (_check_file(f"{t}/{n}") for n in layout.ABLATION_TABLES) if m] == []
+    assert [m for m in (_check_file(f"{t}/{n}") for n in table_files()) if m] == []

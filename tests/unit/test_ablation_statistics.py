@@ -106,6 +106,14 @@ def test_summarize_report(ablation):
         fig.canvas.draw()
     md = table6_markdown(tables["table6"])
     assert "| | Uniform | AmorGS |" in md and "| Percentage (%) | 25.0 | 75.0 |" in md
+    # one table per record of the study table, and the rates are the β sweep's rows at β
+    from amorgs.ablation.studies import STUDIES, table_files
+
+    assert list(tables) == [study.name for study in STUDIES]
+    at_beta = tables["beta_sweep"][tables["beta_sweep"]["beta_kg"] == 415.0].reset_index(drop=True)
+    pd.testing.assert_frame_equal(tables["rates"], at_beta)
+    files = table_files()
+    assert len(set(files)) == len(files) and "table6.md" in files and "ablation_anytime.md" not in files
 
 
 # ----------------------------------------------------------------- issue 11: statistics at modest n

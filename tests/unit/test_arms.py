@@ -15,8 +15,7 @@ from cr3bp_synthetic import TRAIN_ALPHAS
 
 from amorgs import layout
 from amorgs.ablation import arms as A
-from amorgs.models.names import CR3BP_MODELS
-from amorgs.models.samplers import CHECKPOINTS
+from amorgs.models.names import CHECKPOINTS, CR3BP_MODELS, resolve
 from amorgs.models.selector import SELECTOR_FILE
 from amorgs.problems import get_problem
 
@@ -35,7 +34,7 @@ def test_the_table_is_consistent():
         assert arm.role in A.ROLES, arm
         assert set(arm.models) <= set(CR3BP_MODELS) and len(set(arm.models)) == len(arm.models), arm
         assert not arm.pooled or arm.high_quality, f"{arm.name}: a pooled arm draws from the high-quality table"
-        assert callable(A.resolve(arm.builder)), arm.builder
+        assert callable(resolve(arm.builder)), arm.builder
     assert sum(arm.paper for arm in A.ARMS) == 5  # the paper's five (Table 6)
     assert (A.BASELINE_ARM, A.REUSE_ARM, A.HEADLINE_ARM) == ("uniform", "nearest_alpha", "amorgs")
     assert A.LEARNED_SAMPLER_NAMES == tuple(arm.name for arm in A.ARMS if arm.models)

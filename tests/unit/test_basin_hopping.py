@@ -245,13 +245,14 @@ def test_a_hit_beyond_the_budget_does_not_count_and_a_rare_success_widens_the_ra
 
 def test_warm_hops_are_re_solved_with_the_warm_options_and_starts_are_not():
     """mbh_warm: the hop solver is the start solver's options with WARM_HOP_IPOPT over its extra IPOPT options
-    (mapping or typed options); the search calls it for hops only."""
+    (typed options, the only form past the config); the search calls it for hops only."""
     from amorgs.solvers.basin_hopping import WARM_HOP_IPOPT, hop_solver_options
     from amorgs.solvers.options import IpoptOptions
 
-    assert hop_solver_options("mbh", {"max_iter": 5}) is None and hop_solver_options("multistart", {}) is None
-    warm = hop_solver_options("mbh_warm", {"max_iter": 5, "ipopt_options": {"print_level": 0}})
-    assert warm["max_iter"] == 5 and warm["ipopt_options"] == {"print_level": 0, **WARM_HOP_IPOPT}
+    assert hop_solver_options("mbh", IpoptOptions(max_iter=5)) is None
+    assert hop_solver_options("multistart", IpoptOptions()) is None
+    warm = hop_solver_options("mbh_warm", IpoptOptions(max_iter=5, ipopt_options={"print_level": 0}))
+    assert warm.max_iter == 5 and warm.ipopt_options == {"print_level": 0, **WARM_HOP_IPOPT}
     typed = hop_solver_options("mbh_warm", IpoptOptions(max_iter=7))
     assert typed.max_iter == 7 and typed.ipopt_options == WARM_HOP_IPOPT
     problem = get_problem("dejong")

@@ -13,7 +13,6 @@ from cr3bp_synthetic import synthetic_hq
 from amorgs.alphas import cap_per_alpha
 from amorgs.models.cr3bp_models import (
     PRESETS,
-    TRAINERS,
     lstm_config,
     stored_from_vanilla,
     stored_vectors,
@@ -26,6 +25,7 @@ from amorgs.models.cr3bp_models import (
 from amorgs.problems.cr3bp import Cr3bpFilter
 from amorgs.models.cvae import GMMPriorCVAE, VanillaCVAE
 from amorgs.models.lstm import ControlLSTM, LSTMConfig
+from amorgs.models.names import CR3BP_MODELS, MODELS, get_model, load_model
 from amorgs.models.reuse_cvae import ReuseCVAE, ReuseCVAESampler, matched_pairs, train_reuse_cvae
 from amorgs.models.training import TrainConfig
 
@@ -88,28 +88,56 @@ def test_subsample_keeps_a_fraction_of_every_alpha():
 
 
 # ------------------------------------------------------------------------------------------- training
-@pytest.mark.parametrize("name", sorted(TRAINERS))
-def test_training_decreases_the_loss(name):
+@pytest.mark.parametrize("name", CR3BP_MODELS)
+def test_training_decreases_the_loss_and_the_checkpoint_round_trips(name, tmp_path):
+    """Every entry of the model table: its trainer lowers the loss, its saver and loader give back the same
+    weights, and a checkpoint of another model under its name is refused, naming the file."""
+    entry = get_model(name)
     losses: list[float] = []
-    model = TRAINERS[name](synthetic_hq(80), "small", cfg(40), lambda epoch, m: losses.append(m["loss"]))
+    model = entry.train(synthetic_hq(80), "small", cfg(40), lambda epoch, m: losses.append(m["loss"]))
     assert isinstance(model, TYPES[name]) and not model.training
     assert len(losses) == 40 and losses[-1] < 0.5 * losses[0]
+    entry.save(model, tmp_path / entry.checkpoint)
+    loaded = load_model(tmp_path, name)
+    assert type(loaded) is type(model) and not loaded.training
+    a, b = model.state_dict(), loaded.state_dict()
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    other = next(m for m in MODELS  # a model of an unrelated class
+                 if not issubclass(TYPES[m.name], TYPES[name]) and not issubclass(TYPES[name], TYPES[m.name]))
+    wrong = tmp_path / "wrong"
+    wrong.mkdir()
+    other.save(other.train(synthetic_hq(20), "small", cfg(1)), wrong / entry.checkpoint)
+    with pytest.raises(ValueError, match="wrong"):
+        load_model(wrong, name)
+    with pytest.raises(FileNotFoundError, match=entry.checkpoint):
+        load_model(tmp_path / "none", name)
+
+
+def test_model_table_is_consistent():
+    """Names unique, the paper's three marked, every dotted name resolvable (without training anything)."""
+    from amorgs.models.names import PAPER_MODELS, resolve
+
+    assert len(set(CR3BP_MODELS)) == len(MODELS) and PAPER_MODELS == ("cvae_gmm", "vanilla_cvae", "lstm")
+    for m in MODELS:
+        assert all(callable(resolve(d)) for d in (m.trainer, m.loader, m.saver)), m
+    with pytest.raises(ValueError, match="unknown model 'nope'"):
+        get_model("nope")
 
 
 @pytest.mark.skipif(not FIXTURE.is_file(), reason="fixture of real solves not present")
-@pytest.mark.parametrize("name", sorted(TRAINERS))
+@pytest.mark.parametrize("name", CR3BP_MODELS)
 def test_training_on_real_solutions(name):
     hq = Cr3bpFilter(min_final_mass_kg=415.0).select(pd.read_parquet(FIXTURE))
     losses: list[float] = []
-    TRAINERS[name](hq, "small", cfg(30), lambda epoch, m: losses.append(m["loss"]))
+    get_model(name).train(hq, "small", cfg(30), lambda epoch, m: losses.append(m["loss"]))
     assert np.all(np.isfinite(losses)) and losses[-1] < 0.5 * losses[0]
 
 
 @pytest.mark.parametrize("n", [30, 3000])
 def test_any_table_size(n):
     hq = synthetic_hq(n)
-    for name, trainer in TRAINERS.items():
-        assert isinstance(trainer(hq, "small", cfg(1)), TYPES[name])
+    for m in MODELS:
+        assert isinstance(m.train(hq, "small", cfg(1)), TYPES[m.name])
 
 
 def test_seed_fixes_the_model():
@@ -141,7 +169,6 @@ def test_reuse_cvae_learns_the_correction_to_an_unseen_alpha(tmp_path):
     was 1.14 against the bound 1.0 on an Intel Xeon (it passed on the AMD EPYC machine)."""
     from amorgs.models import cvae
     from amorgs.models.reuse_cvae import load
-    from amorgs.models.samplers import load_model
     from amorgs.problems import get_problem
 
     hq = synthetic_hq(400)

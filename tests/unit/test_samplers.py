@@ -9,10 +9,11 @@ import pandas as pd
 import pytest
 from cr3bp_synthetic import TRAIN_ALPHAS, synthetic_hq
 
-from amorgs.ablation.arms import ARMS, SAMPLER_NAMES, ArmInputs, build_sampler, get_arm, resolve
+from amorgs.ablation.arms import ARMS, SAMPLER_NAMES, ArmInputs, build_sampler, get_arm
 from amorgs.models import cvae
+from amorgs.models.cvae import torch_generator
+from amorgs.models.names import CHECKPOINTS, resolve
 from amorgs.models.samplers import (
-    CHECKPOINTS,
     ContinuationSampler,
     GMMLSTMSampler,
     NearestAlphaPerturbedSampler,
@@ -20,7 +21,6 @@ from amorgs.models.samplers import (
     UniformSampler,
     make_valid,
     nearest_training_alpha,
-    torch_generator,
 )
 from amorgs.problems import get_problem
 

@@ -15,21 +15,20 @@ A builder is called as ``builder(problem, inputs)`` with an :class:`ArmInputs` a
 
 Adding an arm (a diffusion sampler, say): write the sampler class and its builder in a model module (a new
 ``amorgs/models/<arm>.py`` or :mod:`amorgs.models.samplers`), then add one :class:`Arm` to :data:`ARMS`.  If it
-loads a model nobody trains yet, that model is part of its model module too (its name in
-:data:`amorgs.models.names.CR3BP_MODELS` and its trainer in :data:`amorgs.models.cr3bp_models.TRAINERS`).
+loads a model nobody trains yet, its trainer, loader and saver live in its model module and the model gets one
+entry in the model table (:data:`amorgs.models.names.MODELS`).
 ``tests/unit/test_arms.py`` then builds and samples it with everything else; regenerate the config schema
 (``amorgs config-schema --write``), whose sampler enum comes from here.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from amorgs.models.names import PERTURBATION_SCALE
+from amorgs.models.names import PERTURBATION_SCALE, get_model, resolve
 
 #: Roles in the statistics (:mod:`amorgs.ablation.statistics`).  One arm each holds ``baseline``, ``reuse`` and
 #: ``headline``; every other arm is ``compared`` against them.
@@ -174,15 +173,6 @@ class ArmInputs:
     selection_oversample: int = 5
 
 
-def resolve(dotted: str):
-    """The object a ``"package.module:attr.attr"`` name points to."""
-    module, _, qualname = dotted.partition(":")
-    obj = importlib.import_module(module)
-    for part in qualname.split("."):
-        obj = getattr(obj, part)
-    return obj
-
-
 def build_sampler(
     name: str,
     problem,
@@ -195,7 +185,7 @@ def build_sampler(
     selection_oversample: int = 5,
 ):
     """The sampler of arm ``name`` for ``problem``: its models loaded (on the CPU) from the checkpoints in
-    ``models_dir`` (:func:`amorgs.models.samplers.load_model`), the high-quality table and training α handed
+    ``models_dir`` (the model table's loaders, :data:`amorgs.models.names.MODELS`), the high-quality table and training α handed
     over if it needs them, and for a ``transfer`` arm the selector file ``selector`` (default: the one in
     ``models_dir``).  ``ValueError`` for an unknown arm or a missing input; ``FileNotFoundError`` for a missing
     checkpoint."""
@@ -206,9 +196,7 @@ def build_sampler(
         raise ValueError(f"sampler {name!r} needs the high-quality table and the training α")
     models = {}
     if arm.models:
-        from amorgs.models.samplers import load_model
-
-        models = {m: load_model(Path(models_dir), m) for m in arm.models}
+        models = {m: get_model(m).load(models_dir) for m in arm.models}
     if arm.transfer:
         from amorgs.models.selector import SELECTOR_FILE, TransferSelector
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from multiprocessing import get_context
 
 import numpy as np
@@ -34,12 +34,13 @@ from amorgs.alphas import alpha_label
 from amorgs.errors import InputError
 from amorgs.problems.cr3bp import BETA_KG
 from amorgs.solvers.basin_hopping import HopSettings
+from amorgs.solvers.options import IpoptOptions
 
 
 @dataclass(frozen=True)
 class GlobalStudy:
     """What a study runs: ``searches`` searches of ``budget`` IPOPT iterations for every (strategy, sampler) at
-    ``alpha``; ``solver`` is the CR3BP solver's options (a mapping); β (kg) selects the library rows the
+    ``alpha``; ``solver`` is the CR3BP solver's options; β (kg) selects the library rows the
     library-based samplers draw on; ``models_dir`` holds the checkpoints of learned samplers; ``record`` is the
     best-known record that joins the target."""
 
@@ -51,7 +52,7 @@ class GlobalStudy:
     seed: int = 0
     hops: HopSettings = HopSettings()
     deltas: tuple[float, ...] = DELTAS
-    solver: dict = field(default_factory=lambda: {"max_iter": 1000})
+    solver: IpoptOptions = IpoptOptions()
     min_final_mass_kg: float = BETA_KG
     library_dir: str = "data/library"
     models_dir: str | None = None
@@ -63,7 +64,7 @@ class GlobalStudy:
         statistics (e.g. ``amorgs design --strategy auto``)."""
         return {"alpha": self.alpha, "samplers": list(self.samplers), "strategies": list(self.strategies),
                 "searches": self.searches, "budget": self.budget, "seed": self.seed,
-                "hops": asdict(self.hops), "deltas": list(self.deltas), "solver": dict(self.solver)}
+                "hops": asdict(self.hops), "deltas": list(self.deltas), "solver": self.solver.to_dict()}
 
     def cells(self) -> list[Cell]:
         return [Cell(sampler=s, strategy=t, alpha=self.alpha, searches=self.searches, budget=self.budget,

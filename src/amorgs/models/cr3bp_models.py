@@ -5,7 +5,7 @@ columns ``alpha`` and the stored decision vector ``tau_s, tau_i, tau_f`` (TU), `
 ``phi_kk`` (rad), ``rho_kk`` (throttle, [0, 1]) for k = 01 … 20.  Pass rows at the *training* α only: every
 row given is trained on, and nothing else about the data (its size, its α values) is assumed.
 
-The three models (checkpoint names are :data:`amorgs.models.names.CHECKPOINTS`)::
+The three models (their entries in the model table :data:`amorgs.models.names.MODELS` name these trainers)::
 
     cvae_gmm      GMMPriorCVAE   x = (τ_s, τ_i, τ_f, m_f)                     cond α
     vanilla_cvae  VanillaCVAE    x = (τ_s, τ_i, τ_f, m_f, u_1, …, u_20)       cond α
@@ -46,7 +46,6 @@ import torch
 from amorgs.models.baselines import stored_from_vanilla, vanilla_vectors  # noqa: F401  (the layout, torch-free)
 from amorgs.models.cvae import CVAEConfig, GMMPriorCVAE, Normalizer, VanillaCVAE, VanillaCVAEConfig
 from amorgs.models.lstm import ControlLSTM, LSTMConfig, cartesian_controls
-from amorgs.models.reuse_cvae import ReuseCVAE, train_reuse_cvae
 from amorgs.models.training import TrainConfig, train
 from amorgs.problems.cr3bp.transcription import N_SEGMENTS, variable_names
 
@@ -163,11 +162,3 @@ def train_control_lstm(
     train(model, u, cond, train_cfg, on_epoch)
     return model.cpu().eval()
 
-
-#: Model name (= checkpoint stem) → its training entry point.
-TRAINERS: dict[str, Callable[..., GMMPriorCVAE | VanillaCVAE | ControlLSTM | ReuseCVAE]] = {
-    "cvae_gmm": train_time_mass_cvae,
-    "vanilla_cvae": train_vanilla_cvae,
-    "lstm": train_control_lstm,
-    "reuse_cvae": train_reuse_cvae,
-}

@@ -436,3 +436,25 @@ def load(path: str | Path, models: dict[str, tuple[type[_CVAE], type[VanillaCVAE
     model = cls(cfg)
     model.load_state_dict(ckpt["state_dict"])
     return model.eval()
+
+
+def _load_as(path: str | Path, cls: type[_CVAE]) -> _CVAE:
+    model = load(path)
+    if not isinstance(model, cls):
+        raise ValueError(f"{path}: expected a {cls.__name__}, got {type(model).__name__}")
+    return model
+
+
+def load_gmm_prior_cvae(path: str | Path) -> GMMPriorCVAE:
+    """A checkpoint of :func:`save` that must hold a :class:`GMMPriorCVAE`; ``ValueError`` naming the file."""
+    return _load_as(path, GMMPriorCVAE)
+
+
+def load_vanilla_cvae(path: str | Path) -> VanillaCVAE:
+    """A checkpoint of :func:`save` that must hold a :class:`VanillaCVAE`; ``ValueError`` naming the file."""
+    return _load_as(path, VanillaCVAE)
+
+
+def torch_generator(rng: np.random.Generator) -> torch.Generator:
+    """A CPU torch generator seeded by one draw from ``rng`` (so a seeded ``rng`` fixes the CVAE noise)."""
+    return torch.Generator().manual_seed(int(rng.integers(0, 2**63 - 1)))

@@ -38,7 +38,7 @@ import torch
 from torch import Tensor
 
 from amorgs.models.baselines import NearestAlphaSampler, make_valid, stored_from_vanilla, vanilla_vectors
-from amorgs.models.cvae import Normalizer, VanillaCVAE, VanillaCVAEConfig
+from amorgs.models.cvae import Normalizer, VanillaCVAE, VanillaCVAEConfig, torch_generator
 from amorgs.models.names import CR3BP_PRESETS
 from amorgs.problems import Problem
 from amorgs.problems.cr3bp.transcription import N_SEGMENTS, variable_names
@@ -173,8 +173,6 @@ class ReuseCVAESampler(NearestAlphaSampler):
         return cls(problem, inputs.high_quality, inputs.train_alphas, inputs.models["reuse_cvae"])
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
-        from amorgs.models.samplers import torch_generator
-
         a_s = self.pool(alpha)[0]
         v_s = vanilla_vectors(self._draw(alpha, n, rng))
         v = self.model.propose(v_s, a_s, float(alpha), generator=torch_generator(rng))

@@ -36,20 +36,18 @@ first one draw of the torch seed (when a CVAE is sampled), then the uniform part
 
 Each class's ``build(problem, inputs)`` is its arm's builder in the table of arms
 (:data:`amorgs.ablation.arms.ARMS`, which :func:`amorgs.ablation.arms.build_sampler` resolves): ``inputs``
-carries the loaded models by name (:func:`load_model`, checkpoints named as in :data:`CHECKPOINTS`), the
+carries the loaded models by name (the model table, :data:`amorgs.models.names.MODELS`), the
 high-quality table, the training α and the arm options.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 import torch
 
-from amorgs.models import cvae, lstm, reuse_cvae
-from amorgs.models.reuse_cvae import ReuseCVAESampler  # noqa: F401  (re-exported: one place for all samplers)
+from amorgs.models import cvae, lstm
+from amorgs.models.cvae import torch_generator
 from amorgs.models.baselines import (  # noqa: F401  (the model-free samplers, re-exported: one place for all)
     ContinuationSampler,
     NearestAlphaPerturbedSampler,
@@ -63,14 +61,8 @@ from amorgs.models.baselines import (  # noqa: F401  (the model-free samplers, r
     usable_training_alphas,
 )
 from amorgs.models.cr3bp_models import lstm_conditioning
-from amorgs.models.names import CHECKPOINTS  # noqa: F401  (re-exported)
 from amorgs.problems import Problem
 from amorgs.problems.base import check_alpha
-
-
-def torch_generator(rng: np.random.Generator) -> torch.Generator:
-    """A CPU torch generator seeded by one draw from ``rng`` (so a seeded ``rng`` fixes the CVAE noise)."""
-    return torch.Generator().manual_seed(int(rng.integers(0, 2**63 - 1)))
 
 
 def _time_mass(model: cvae.GMMPriorCVAE, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -225,26 +217,3 @@ class GMMLSTMSampler:
         tm = np.clip(self.time_mass(alpha, n, rng), self.problem.lower[:4], self.problem.upper[:4])
         x = np.concatenate([tm, self.lstm.generate(lstm_conditioning(tm, alpha))], axis=1)
         return make_valid(x, self.problem)
-
-
-def _load_cvae(path: Path, cls: type[cvae.GMMPriorCVAE] | type[cvae.VanillaCVAE]):
-    """A CVAE checkpoint that must hold a ``cls`` model; ``ValueError`` naming the file otherwise."""
-    model = cvae.load(path)
-    if not isinstance(model, cls):
-        raise ValueError(f"{path}: expected a {cls.__name__}, got {type(model).__name__}")
-    return model
-
-
-#: Model name → how its checkpoint is read (on the CPU, eval mode).
-LOADERS = {
-    "cvae_gmm": lambda path: _load_cvae(path, cvae.GMMPriorCVAE),
-    "vanilla_cvae": lambda path: _load_cvae(path, cvae.VanillaCVAE),
-    "lstm": lstm.load,
-    "reuse_cvae": reuse_cvae.load,
-}
-
-
-def load_model(models_dir: str | Path, name: str):
-    """The model ``name`` (a key of :data:`CHECKPOINTS`) from its checkpoint in ``models_dir``;
-    ``FileNotFoundError`` if it is missing, ``ValueError`` if it holds another kind of model."""
-    return LOADERS[name](Path(models_dir) / CHECKPOINTS[name])

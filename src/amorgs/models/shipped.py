@@ -30,12 +30,12 @@ from amorgs.data.io import atomic_path, write_json
 from amorgs.data.library import MANIFEST as LIBRARY_MANIFEST
 from amorgs.data.library import git_commit, read_manifest, sha256_file
 from amorgs.errors import InputError
-from amorgs.models.names import PAPER_MODELS
+from amorgs.models.names import CHECKPOINTS, PAPER_MODELS
 
 MANIFEST = "provenance.json"
 #: The transfer data the shipped selector was trained on (every transfer shard of its run, one table).
 SELECTOR_DATA = "selector.transfer.parquet"
-CHECKPOINT_FILES = tuple(f"{name}.pt" for name in PAPER_MODELS)
+CHECKPOINT_FILES = tuple(CHECKPOINTS[name] for name in PAPER_MODELS)
 
 
 def export_models(models_dir: str | Path, dest: str | Path, cfg, config_file: str | Path,

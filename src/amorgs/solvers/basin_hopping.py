@@ -70,12 +70,10 @@ WARM_HOP_IPOPT = {"mu_init": 1e-6, "bound_push": 1e-8, "bound_frac": 1e-8, "boun
 
 def hop_solver_options(strategy: str, options):
     """The solver options of ``strategy``'s hop re-solves: ``options`` with :data:`WARM_HOP_IPOPT` over its extra
-    IPOPT options for ``mbh_warm`` (a mapping or an :class:`~amorgs.solvers.options.IpoptOptions`), None (the
-    starts' solver) otherwise."""
+    IPOPT options for ``mbh_warm`` (an :class:`~amorgs.solvers.options.IpoptOptions`), None (the starts' solver)
+    otherwise."""
     if strategy != "mbh_warm":
         return None
-    if isinstance(options, dict):
-        return {**options, "ipopt_options": {**options.get("ipopt_options", {}), **WARM_HOP_IPOPT}}
     import dataclasses
 
     return dataclasses.replace(options, ipopt_options={**options.ipopt_options, **WARM_HOP_IPOPT})

@@ -13,6 +13,7 @@ from pydantic import Field
 
 from amorgs import layout
 from amorgs.ablation.arms import SAMPLER_NAMES, get_arm
+from amorgs.ablation.studies import table_files
 from amorgs.alphas import alpha_label
 from amorgs.config import Config, Section
 from amorgs.data.seeds import cell_seed
@@ -196,7 +197,9 @@ def run_report(job: Job, run) -> None:
     use_agg()
     import pandas as pd
 
-    from amorgs.ablation.report import MARKDOWN_TITLES, markdown_table, summarize, table6_markdown
+    from amorgs.ablation.report import markdown_table, summarize
+    from amorgs.ablation.studies import STUDIES
+    from amorgs.models.names import resolve
     from amorgs.data.io import atomic_path, write_json
     from amorgs.figures.ablation import ablation_figures
 
@@ -211,19 +214,18 @@ def run_report(job: Job, run) -> None:
                        n_boot=s.n_boot, seed=s.seed, beta_sweep=s.beta_sweep_kg, iteration_caps=s.iteration_caps,
                        max_iter=s.max_iter, upfront_cpu_s=upfront, break_even_solutions=s.break_even_solutions,
                        eta=s.eta)
-    tables = report.tables
     by_name = {os.path.basename(p): p for p in job.output["tables"]}
-    with atomic_path(by_name["table6.md"]) as tmp:
-        tmp.write_text(table6_markdown(tables["table6"]) + "\n")
-    for key, table in tables.items():
-        stem = key if key == "table6" else f"ablation_{key}"
+    for study in STUDIES:
+        table = report.tables[study.name]
         if table.columns.empty:  # a study the config did not ask for: say so rather than leave an empty file
-            table = pd.DataFrame({"status": [f"not requested by the config ({key})"]})
-        with atomic_path(by_name[f"{stem}.csv"]) as tmp:
+            table = pd.DataFrame({"status": [f"not requested by the config ({study.name})"]})
+        with atomic_path(by_name[f"{study.stem}.csv"]) as tmp:
             table.to_csv(tmp, index=False)
-        if key in MARKDOWN_TITLES:
-            with atomic_path(by_name[f"{stem}.md"]) as tmp:
-                tmp.write_text(markdown_table(table, f"**{MARKDOWN_TITLES[key]}**"))
+        if study.markdown or study.title:
+            text = (resolve(study.markdown)(table) + "\n" if study.markdown
+                    else markdown_table(table, f"**{study.title}**"))
+            with atomic_path(by_name[f"{study.stem}.md"]) as tmp:
+                tmp.write_text(text)
     write_json(report.metrics, job.output["summary"])
     run.log_metrics(finite_metrics(report.metrics))
     for path in [job.output["summary"], *job.output["tables"]]:
@@ -248,7 +250,7 @@ STEPS = (
          description="a learned arm with models trained on a fraction of the data (learning curve)"),
     Step("ablation_report", ReportSettings, _report_settings, run_report, once_if("ablation"),
          lambda w: {"summary": layout.ABLATION_SUMMARY,
-                    "tables": [layout.TABLE.format(name=n) for n in layout.ABLATION_TABLES],
+                    "tables": [layout.TABLE.format(name=n) for n in table_files()],
                     "figures": [layout.FIGURE.format(name=n) for n in layout.ABLATION_FIGURES]},
          resources=resources_of("figure"),
          report=("ablation", "CR3BP ablation"),

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Union
 
 from pydantic import Field, model_validator
 
@@ -14,6 +14,9 @@ from amorgs.data.seeds import shard_seed
 from amorgs.problems import FAMILIES, PROBLEMS
 from amorgs.solvers.options import as_options
 from amorgs.steps import Job, Step, Wildcards, resources_of
+
+#: Any family's solver options: the union of the families' ``options_type``.
+SolverOptions = Union[tuple(dict.fromkeys(f.options_type for f in FAMILIES.values()))]  # noqa: UP007
 
 
 #: A shard of a family with quick solves (``Family.quick_solves``) and at most this many starts does seconds of
@@ -31,7 +34,8 @@ class GenerateSettings(Section):
     alpha: float
     seed: Annotated[int, Field(ge=0)]
     starts: Annotated[int, Field(ge=1)]
-    solver: Any = Field(description="the options of the problem's solver, an instance of its family's options_type")
+    solver: SolverOptions = Field(description="the options of the problem's solver, an instance of its family's "
+                                              "options_type (converted from a mapping by the problem it names)")
 
     @model_validator(mode="before")
     @classmethod

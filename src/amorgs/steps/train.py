@@ -12,7 +12,7 @@ from pydantic import Field
 from amorgs import layout
 from amorgs.alphas import alpha_label, rows_at_any
 from amorgs.config import Config, Cr3bpModels, Section
-from amorgs.models.names import CR3BP_MODELS, PAPER_MODELS
+from amorgs.models.names import CR3BP_MODELS, PAPER_MODELS, get_model
 from amorgs.steps import Job, Step, Wildcards, resources_of
 
 
@@ -44,8 +44,7 @@ def run_train(job: Job, run) -> None:
 
     from amorgs.alphas import cap_per_alpha
     from amorgs.data.io import atomic_path, write_json
-    from amorgs.models import cvae, lstm
-    from amorgs.models.cr3bp_models import TRAINERS, subsample
+    from amorgs.models.cr3bp_models import subsample
     from amorgs.models.training import TrainConfig
 
     s: TrainSettings = job.settings
@@ -72,10 +71,11 @@ def run_train(job: Job, run) -> None:
         epochs.append(epoch)
         run.log_metrics(metrics, step=epoch)
 
-    model = TRAINERS[s.model](hq, m.preset, cfg, on_epoch=on_epoch)
+    entry = get_model(s.model)
+    model = entry.train(hq, m.preset, cfg, on_epoch)
     cpu_s, wall_s = time.process_time() - cpu0, time.perf_counter() - wall0
     with atomic_path(output) as tmp:
-        (lstm.save if s.model == "lstm" else cvae.save)(model, tmp)
+        entry.save(model, tmp)
     ran = len(epochs)
     write_json({"model": s.model, "seed": s.seed, "fraction": s.fraction, "rows": len(hq), "rows_available": available,
                 "epochs": ran, "max_epochs": m.epochs, "threads": job.threads, "train_cpu_s": cpu_s,
