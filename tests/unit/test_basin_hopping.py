@@ -132,6 +132,14 @@ def test_one_cr3bp_mbh_cell_on_ipopt():
     assert (table.loc[table["delta"] == 50.0, "successes"] >= 1).all()
     near = distinct_near_best(solutions, best, deltas=(50.0,))
     assert int(near["distinct"].iloc[0]) >= 1 and int(near["near_best"].iloc[0]) >= int(near["distinct"].iloc[0])
+    # every event records the guess it started from: re-solved, a hop and a start give the recorded result exactly
+    guesses = events[[f"guess_{n}" for n in problem.variable_names]].to_numpy()
+    assert np.isfinite(guesses).all()
+    for kind in ("start", "hop"):
+        row = events.index[events["kind"] == kind][-1]
+        again = solver.solve(guesses[row], 1.0)
+        assert (again.iterations, again.status) == (events.at[row, "iterations"], events.at[row, "status"])
+        assert again.objective == events.at[row, "objective"] or not again.converged
 
 
 def test_runtime_to_target_is_the_expected_runtime_with_a_bootstrap_interval():

@@ -83,7 +83,8 @@ def run_search(cell: Cell, r: int, sample, solve, lower: np.ndarray, upper: np.n
                variable_names: tuple[str, ...], solve_hop=None) -> tuple[list[dict], list[dict]]:
     """Search ``r`` of ``cell``: ``sample(alpha, n, rng)`` is the sampler, ``solve(x0, alpha)`` the local solver,
     the generator ``default_rng([cell.seed, r])`` draws both its starts and its hops.  Returns its event rows
-    (the cell's keys, ``search``, :class:`~amorgs.solvers.basin_hopping.SearchTrace`'s columns and ``stop``) and
+    (the cell's keys, ``search``, :class:`~amorgs.solvers.basin_hopping.SearchTrace`'s columns, ``stop`` and the
+    guess the solve started from as ``guess_<name>`` columns, so a sample can be re-solved) and
     its feasible solutions (the cell's keys, ``search``, ``event``, ``objective`` and the stored vector as named
     columns)."""
     settings = strategy_settings(cell.strategy, cell.hops)
@@ -92,7 +93,9 @@ def run_search(cell: Cell, r: int, sample, solve, lower: np.ndarray, upper: np.n
     hop_solve = (lambda x0: solve_hop(x0, cell.alpha)) if solve_hop is not None else None
     trace = search(lambda x0: solve(x0, cell.alpha), _starts(sample, cell.alpha, rng), lower, upper, settings,
                    cell.budget, rng, hop_solve)
-    events = [{**keys, "search": r, **e, "stop": trace.stop} for e in trace.events]
+    guess_names = [f"guess_{name}" for name in variable_names]
+    events = [{**keys, "search": r, **e, "stop": trace.stop, **dict(zip(guess_names, map(float, x0)))}
+              for e, x0 in zip(trace.events, trace.guesses)]
     objective = {e["solve"]: e["objective"] for e in trace.events}
     solutions = [{**keys, "search": r, "event": i, "objective": objective[i], **dict(zip(variable_names, x))}
                  for i, x in trace.solutions]

@@ -123,10 +123,12 @@ def improves(record: SolveRecord, incumbent: SolveRecord | None, min_improvement
 class SearchTrace:
     """One search: a row per solve (``events``: solve, run, kind 'start'/'hop', iterations, cumulative
     iterations, status, converged, objective, accepted, best objective so far — NaN before the first feasible
-    one) and the stored vectors of its feasible solutions (``solutions``, one row each, in the order found, with
-    their ``event`` index).  ``stop``: 'budget' or 'starts exhausted'."""
+    one), the guess each solve started from (``guesses``, one per event: what a certificate re-solves) and the
+    stored vectors of its feasible solutions (``solutions``, one row each, in the order found, with their
+    ``event`` index).  ``stop``: 'budget' or 'starts exhausted'."""
 
     events: list[dict] = field(default_factory=list)
+    guesses: list[np.ndarray] = field(default_factory=list)
     solutions: list[tuple[int, np.ndarray]] = field(default_factory=list)
     stop: str = "budget"
 
@@ -174,6 +176,7 @@ def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], 
         if record.converged and math.isfinite(record.objective):
             best = record.objective if math.isnan(best) else min(best, record.objective)
             trace.solutions.append((len(trace.events), np.asarray(record.x, float).copy()))
+        trace.guesses.append(np.asarray(x0, float).copy())
         trace.events.append({
             "solve": len(trace.events), "run": run, "kind": "start" if restart else "hop",
             "iterations": int(record.iterations), "cumulative_iterations": used, "status": record.status,
