@@ -91,6 +91,16 @@ def reference_name(dest: str | Path) -> str:
         return dst.name
 
 
+def under_reference(dest: str | Path) -> bool:
+    """Whether ``dest`` lies under the ``reference/`` folder of the repository holding it (a committed reference)."""
+    dst = Path(dest).resolve()
+    try:
+        dst.relative_to(repository_root(dst.parent if dst.parent.exists() else ".") / "reference")
+    except (ValueError, InputError):
+        return False
+    return True
+
+
 def record_entry(dest: str | Path, entry: dict) -> Path:
     """Write ``entry`` as the registry entry of the reference ``dest`` (the registry of the repository holding it)."""
     dst = Path(dest).resolve()

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import yaml
 
 from amorgs.config import load_config
 from amorgs.data.io import atomic_path, write_json
@@ -360,3 +361,46 @@ def _models_of(arms) -> set[str]:
     from amorgs.ablation.arms import models_loaded
 
     return set(models_loaded(arms))
+
+
+def export_global_study(dest: str | Path, study, command: str) -> dict:
+    """Make the finished global-search study in ``dest`` (``amorgs global-search --dest``: its events, solutions,
+    tables, figure and ``study.json``) a certifiable reference: :data:`STARTS_FILE` (its events that a re-solve can
+    check, :func:`amorgs.ablation.global_study.certifiable_starts`), :data:`CONFIG_COPY` (the study's solver options
+    as an override of the typed config: what a certificate re-solves with) and :data:`MANIFEST` (every file's
+    SHA-256, the identity the starts record, the commit, packages, ``command``); returns the manifest.  ``study``
+    is the :class:`~amorgs.ablation.global_study.GlobalStudy` that ran (or whose events were recomputed)."""
+
+    from amorgs.ablation.global_study import certifiable_starts
+
+    dst = Path(dest)
+    events = pd.read_parquet(dst / "events.parquet")
+    starts = certifiable_starts(events, study)
+    with atomic_path(dst / STARTS_FILE) as tmp:
+        starts.to_parquet(tmp, index=False, compression="zstd")
+    with atomic_path(dst / CONFIG_COPY) as tmp:
+        tmp.write_text("# The global-search study's solver options (written by amorgs global-search): what "
+                       "amorgs reference-certify re-solves its starts with.\n"
+                       + yaml.safe_dump({"problems": {"cr3bp": {"solver": study.solver.to_dict()}},
+                                         "ablation": {"iteration_caps": [study.solver.max_iter]}}, sort_keys=True))
+    skip = {MANIFEST, README, CONFIG_COPY}
+    files = [{"file": p.relative_to(dst).as_posix(), "sha256": sha256_file(p), "bytes": p.stat().st_size}
+             for p in sorted(dst.rglob("*")) if p.is_file() and p.relative_to(dst).as_posix() not in skip]
+    state = git_state(Path.cwd())
+    manifest = {
+        "kind": "global-search",
+        "config_file": CONFIG_COPY,
+        "config_sha256": sha256_file(dst / CONFIG_COPY),
+        "config_hash": load_config(dst / CONFIG_COPY).hash,
+        "command": command,
+        **state,
+        "identity": {"commit": state["git_commit"], **(starts_identity(starts) if len(starts) else {}),
+                     "environment": environment()},
+        "certifiable": {"events": int(len(starts)), "of_events": int(len(events)),
+                        "cells": sorted({f"{t} × {s}" for t, s in zip(starts["strategy"], starts["sampler"])})},
+        "exported": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "packages": {k.removeprefix("version."): v for k, v in package_versions().items()},
+        "files": files,
+    }
+    write_json(manifest, dst / MANIFEST)
+    return manifest

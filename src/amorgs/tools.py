@@ -221,10 +221,14 @@ def cmd_best_known(args: argparse.Namespace) -> None:
 def cmd_global_search(args: argparse.Namespace) -> None:
     from pathlib import Path
 
+    import shlex
+
     from amorgs.ablation.global_study import GlobalStudy, compare, run_study
+    from amorgs.certification import record_entry, under_reference
     from amorgs.data.io import atomic_path, check_writable_folder, write_parquet
     from amorgs.errors import InputError
     from amorgs.figures.global_search import fig_runtime_ecdf
+    from amorgs.reference import export_global_study
     from amorgs.solvers.basin_hopping import HopSettings
     from amorgs.solvers.options import IpoptOptions
 
@@ -264,11 +268,17 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     fig = fig_runtime_ecdf(tables["runtime_ecdf"], tables["runtime_to_target"], {study.alpha: float(best["m_f"])},
                            study.deltas, study.budget)
     fig.savefig(dest / "fig_runtime_ecdf.png", dpi=130)
+    manifest = export_global_study(dest, study, "amorgs " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    certifiable = manifest["certifiable"]
+    where = ""
+    if under_reference(dest):  # a committed reference: certified by its route from now on
+        where = f"; certified with today's code in {record_entry(dest, {'route': 'today', **manifest['identity']})}"
     print(f"α = {study.alpha:g}: best known m_f {best['m_f']:.3f} kg ({best['source']}); ERT in IPOPT iterations "
           f"(95 % bootstrap), successes/searches:")
     print(readable.to_string())
     print(f"{dest}: events.parquet, solutions.parquet, study.json, runtime_to_target.{{csv,md}}, runtime_ecdf.csv, "
-          "ert_ratios.csv, distinct.csv, best_known.csv, fig_runtime_ecdf.png")
+          f"ert_ratios.csv, distinct.csv, best_known.csv, fig_runtime_ecdf.png; {certifiable['events']} of "
+          f"{certifiable['of_events']} events re-solvable (starts.parquet, config.yaml, provenance.json{where})")
 
 
 def cmd_ui(args: argparse.Namespace) -> None:

@@ -279,3 +279,32 @@ def test_warm_hops_are_re_solved_with_the_warm_options_and_starts_are_not():
                    solve_hop=counted("hop"))
     kinds = [e["kind"] for e in trace.events]
     assert calls == {"start": kinds.count("start"), "hop": kinds.count("hop")} and calls["hop"] > 0
+
+
+def test_a_global_search_is_a_certifiable_reference(tmp_path):
+    """`amorgs global-search` leaves a reference that `reference-certify` can check: every event solved with the
+    study's options (starts, and plain MBH's hops) is in starts.parquet with its guess, fingerprint and options
+    hash, a warm hop (other options) is not; the manifest verifies, and a seeded sample re-solves exactly."""
+    import subprocess
+    import sys
+
+    from amorgs.certification import certify_reference
+    from amorgs.reference import STARTS_FILE, verify_reference
+
+    dest = tmp_path / "gs"
+    out = subprocess.run([sys.executable, "-m", "amorgs", "global-search", "--alpha", "1.0", "--samplers", "uniform",
+                          "--strategies", "mbh", "mbh_warm", "--searches", "1", "--budget", "900", "--max-iter", "200",
+                          "--hop-scale", "0.005", "--patience", "3", "--deltas", "50", "--dest", str(dest)],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    events, starts = pd.read_parquet(dest / "events.parquet"), pd.read_parquet(dest / STARTS_FILE)
+    warm_hops = (events["strategy"] == "mbh_warm") & (events["kind"] == "hop")
+    assert (events["kind"] == "hop").any(), "no hop: the test would not see the options filter"
+    assert events["nlp_fingerprint"].str.len().eq(12).all() and events["options_hash"].nunique() == 1 + warm_hops.any()
+    assert len(starts) == int((~warm_hops).sum()) and starts["options_hash"].nunique() == 1
+    assert f"{int(len(starts))} of {len(events)} events re-solvable" in out.stdout
+    manifest = verify_reference(dest)
+    assert manifest["certifiable"]["events"] == len(starts) and manifest["identity"]["nlp_fingerprints"] == {
+        "1": events["nlp_fingerprint"].iloc[0]}
+    cert = certify_reference(dest, sample=3, seed=1)
+    assert cert["exact"] and cert["sample"] == 3 and cert["route"] == "today"

@@ -133,9 +133,33 @@ def _init_worker(study: GlobalStudy, high_quality, train_alphas) -> None:
 def _search_task(task: tuple[Cell, int]) -> tuple[list[dict], list[dict]]:
     cell, r = task
     p = _WORKER["problem"]
-    hop = _WORKER["hop_solver"].solve if cell.strategy == "mbh_warm" else None
-    return run_search(cell, r, _WORKER["samplers"][cell.sampler].sample, _WORKER["solver"].solve, p.lower, p.upper,
-                      p.variable_names, hop)
+    solver, hop_solver = _WORKER["solver"], _WORKER["hop_solver"] if cell.strategy == "mbh_warm" else None
+    events, solutions = run_search(cell, r, _WORKER["samplers"][cell.sampler].sample, solver.solve, p.lower, p.upper,
+                                   p.variable_names, hop_solver.solve if hop_solver is not None else None)
+    for e in events:  # which options solved it: a warm hop's are not the study's
+        e["options_hash"] = (hop_solver if hop_solver is not None and e["kind"] == "hop" else solver).options_hash
+    return events, solutions
+
+
+def certifiable_starts(events: pd.DataFrame, study: GlobalStudy) -> pd.DataFrame:
+    """The events of a study that a certificate can re-solve (:data:`amorgs.reference.STARTS_FILE`'s layout, for
+    :func:`amorgs.certification.certify_reference`): those that record their guess (``guess_<name>`` columns) and
+    were solved with the study's own solver options (``options_hash`` — a warm hop's options differ), one row each:
+    ``sampler``, ``strategy``, ``alpha``, ``seed`` (the search r, whose generator is ``default_rng([study seed, r])``),
+    ``start`` (the solve's index in its search), ``kind``, ``status``, ``iterations``, ``m_f`` (kg, −objective),
+    ``options_hash``, ``nlp_fingerprint`` and the guess.  Events of older studies (no guesses) are left out."""
+    guesses = [c for c in events.columns if c.startswith("guess_")]
+    if not guesses or "options_hash" not in events:
+        return pd.DataFrame(columns=["sampler", "strategy", "alpha", "seed", "start", "kind", "status", "iterations",
+                                     "m_f", "options_hash", "nlp_fingerprint"])
+    keep = events[guesses].notna().all(axis=1) & (events["options_hash"] == study.solver.digest())
+    rows = events[keep]
+    out = pd.DataFrame({"sampler": rows["sampler"], "strategy": rows["strategy"], "alpha": rows["alpha"].astype(float),
+                        "seed": rows["search"].astype(int), "start": rows["solve"].astype(int), "kind": rows["kind"],
+                        "status": rows["status"], "iterations": rows["iterations"].astype(int),
+                        "m_f": -rows["objective"].astype(float), "options_hash": rows["options_hash"],
+                        "nlp_fingerprint": rows["nlp_fingerprint"]})
+    return pd.concat([out, rows[guesses]], axis=1).reset_index(drop=True)
 
 
 def run_study(study: GlobalStudy, workers: int = 1) -> dict[str, pd.DataFrame]:

@@ -123,7 +123,7 @@ def improves(record: SolveRecord, incumbent: SolveRecord | None, min_improvement
 class SearchTrace:
     """One search: a row per solve (``events``: solve, run, kind 'start'/'hop', iterations, cumulative
     iterations, status, converged, objective, accepted, best objective so far — NaN before the first feasible
-    one), the guess each solve started from (``guesses``, one per event: what a certificate re-solves) and the
+    one —, and the fingerprint of the NLP the solve ran on), the guess each solve started from (``guesses``, one per event: what a certificate re-solves) and the
     stored vectors of its feasible solutions (``solutions``, one row each, in the order found, with their
     ``event`` index).  ``stop``: 'budget' or 'starts exhausted'."""
 
@@ -181,7 +181,7 @@ def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], 
             "solve": len(trace.events), "run": run, "kind": "start" if restart else "hop",
             "iterations": int(record.iterations), "cumulative_iterations": used, "status": record.status,
             "converged": bool(record.converged), "objective": float(record.objective), "accepted": accepted,
-            "best_objective": best,
+            "best_objective": best, "nlp_fingerprint": record.nlp_fingerprint,
         })
     return trace
 
