@@ -223,6 +223,8 @@ def cmd_global_search(args: argparse.Namespace) -> None:
 
     import shlex
 
+    import numpy as np
+
     from amorgs.ablation.global_study import GlobalStudy, compare, run_study
     from amorgs.certification import record_entry, under_reference
     from amorgs.data.io import atomic_path, check_writable_folder, write_parquet
@@ -258,7 +260,7 @@ def cmd_global_search(args: argparse.Namespace) -> None:
         write_parquet(tables[name], dest / f"{name}.parquet")
     readable = compare(tables["runtime_to_target"])
     texts = {f"{name}.csv": tables[name].to_csv(index=False)
-             for name in ("runtime_to_target", "runtime_ecdf", "ert_ratios", "distinct", "best_known")}
+             for name in ("runtime_to_target", "runtime_ecdf", "ert_ratios", "ert_pairs", "distinct", "best_known")}
     texts["runtime_to_target.md"] = readable.to_markdown() + "\n"
     texts["study.json"] = json.dumps(study.summary(), indent=1, sort_keys=True) + "\n"
     for name, text in texts.items():
@@ -276,8 +278,15 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     print(f"α = {study.alpha:g}: best known m_f {best['m_f']:.3f} kg ({best['source']}); ERT in IPOPT iterations "
           f"(95 % bootstrap), successes/searches:")
     print(readable.to_string())
+    pairs = tables["ert_pairs"]
+    if len(pairs):
+        print("ERT ratios (95 % bootstrap; below 1 = faster): hopping ÷ multi-start from the same sampler, and each "
+              "sampler ÷ reuse under the same strategy:")
+        for r in pairs[np.isfinite(pairs["ratio"])].itertuples(index=False):
+            print(f"  δ = {r.delta:g} kg: {r.strategy} × {r.sampler} ÷ {r.baseline}: {r.ratio:.2f} "
+                  f"({r.ratio_lo:.2f}–{r.ratio_hi:.2f})")
     print(f"{dest}: events.parquet, solutions.parquet, study.json, runtime_to_target.{{csv,md}}, runtime_ecdf.csv, "
-          f"ert_ratios.csv, distinct.csv, best_known.csv, fig_runtime_ecdf.png; {certifiable['events']} of "
+          f"ert_ratios.csv, ert_pairs.csv, distinct.csv, best_known.csv, fig_runtime_ecdf.png; {certifiable['events']} of "
           f"{certifiable['of_events']} events re-solvable (starts.parquet, config.yaml, provenance.json{where})")
 
 

@@ -202,6 +202,27 @@ def test_the_ert_ratio_to_the_baseline_has_an_interval_that_tells_faster_from_no
     assert table.loc["multistart", "ratio"] == 1.0 and table.loc["multistart", "ratio_lo"] <= 1 <= table.loc["multistart", "ratio_hi"]
 
 
+def test_paired_ratios_ask_whether_hopping_pays_and_whether_a_sampler_beats_reuse_under_each_strategy():
+    """Four cells of 20 searches (hit at the given iterations every time, budget 1000): hopping ÷ multi-start is
+    taken within each sampler, each sampler ÷ reuse within each strategy, and the ratios are those of the ERTs."""
+    from amorgs.ablation.global_search import paired_ratios
+
+    hits = {("multistart", "nearest_alpha"): 400, ("mbh", "nearest_alpha"): 800,
+            ("multistart", "amorgs"): 200, ("mbh", "amorgs"): 100}
+    rows = [{"strategy": t, "sampler": s, "alpha": 0.3, "search": r, "cumulative_iterations": k,
+             "best_objective": -10.0} for (t, s), k in hits.items() for r in range(20)]
+    table = paired_ratios(pd.DataFrame(rows), -10.0, deltas=(0.5,), n_boot=200)
+    got = {(q, t, s): (ratio, hi) for q, t, s, ratio, hi in
+           table[["question", "strategy", "sampler", "ratio", "ratio_hi"]].itertuples(index=False)}
+    assert set(got) == {("hopping", "mbh", "nearest_alpha"), ("hopping", "mbh", "amorgs"),
+                        ("sampler", "multistart", "amorgs"), ("sampler", "mbh", "amorgs")}
+    assert got[("hopping", "mbh", "nearest_alpha")][0] == pytest.approx(2.0)
+    assert got[("hopping", "mbh", "amorgs")][0] == pytest.approx(0.5)
+    assert got[("sampler", "multistart", "amorgs")][0] == pytest.approx(0.5)
+    assert got[("sampler", "mbh", "amorgs")] == pytest.approx((0.125, 0.125))  # every search alike: no spread
+    assert set(table["baseline"]) == {"multistart × nearest_alpha", "multistart × amorgs", "mbh × nearest_alpha"}
+
+
 def test_chains_advance_a_round_at_a_time_by_the_search_rule():
     """Three De Jong chains: the first round restarts all from the sampler; a chain with a feasible incumbent hops
     next; `patience` misses in a row restart it; a kept hop resets its misses."""

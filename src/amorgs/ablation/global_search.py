@@ -208,6 +208,34 @@ def ert_ratios(events: pd.DataFrame, best: float, deltas=DELTAS, baseline: tuple
     return pd.DataFrame(rows)
 
 
+#: The sampler every other is compared with in :func:`paired_ratios` (reuse of the nearest library α).
+REUSE_SAMPLER = "nearest_alpha"
+
+
+def paired_ratios(events: pd.DataFrame, best: float, deltas=DELTAS, n_boot: int = 2000, seed: int = 0,
+                  budget: float = math.inf, reuse: str = REUSE_SAMPLER) -> pd.DataFrame:
+    """The two questions of a strategy × sampler study, as ERT ratios with :func:`ert_ratios`'s intervals:
+    ``question`` "hopping" — each basin-hopping cell ÷ multi-start from the *same* sampler (does hopping pay?) —
+    and "sampler" — each sampler's cell ÷ ``reuse``'s under the *same* strategy (does a sampler beat reuse, and
+    does hopping change that answer?).  Columns of :func:`ert_ratios` plus ``question``."""
+    parts = []
+    cells = set(zip(events["strategy"], events["sampler"]))
+    for strategy, sampler in sorted(cells):
+        if strategy != "multistart" and ("multistart", sampler) in cells:
+            r = ert_ratios(events[(events["sampler"] == sampler) & events["strategy"].isin(["multistart", strategy])],
+                           best, deltas, ("multistart", sampler), n_boot, seed, budget)
+            parts.append(r[r["strategy"] == strategy].assign(question="hopping"))
+        if sampler != reuse and (strategy, reuse) in cells:
+            r = ert_ratios(events[(events["strategy"] == strategy) & events["sampler"].isin([reuse, sampler])],
+                           best, deltas, (strategy, reuse), n_boot, seed, budget)
+            parts.append(r[r["sampler"] == sampler].assign(question="sampler"))
+    if not parts:
+        return pd.DataFrame(columns=["alpha", "delta", "strategy", "sampler", "baseline", "ratio", "ratio_lo",
+                                     "ratio_hi", "question"])
+    return pd.concat(parts, ignore_index=True).sort_values(["question", "alpha", "delta", "strategy", "sampler"],
+                                                           ignore_index=True)
+
+
 def runtime_ecdf(events: pd.DataFrame, best: float, deltas=DELTAS, budget: float = math.inf) -> pd.DataFrame:
     """The runtime ECDF per (sampler, strategy, α): for each hit of a (search, δ) pair within ``budget``, in order,
     the fraction of all its (search, δ) pairs reached by then (``iterations``, ``fraction``)."""

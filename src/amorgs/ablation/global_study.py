@@ -25,6 +25,7 @@ from amorgs.ablation.global_search import (
     best_known,
     distinct_near_best,
     ert_ratios,
+    paired_ratios,
     run_search,
     runtime_ecdf,
     runtime_to_target,
@@ -165,7 +166,7 @@ def certifiable_starts(events: pd.DataFrame, study: GlobalStudy) -> pd.DataFrame
 def run_study(study: GlobalStudy, workers: int = 1) -> dict[str, pd.DataFrame]:
     """Run every search of every cell on ``workers`` spawned processes (each builds its own solver and samplers;
     results do not depend on the number of workers) and compute the study's tables: ``events``, ``solutions``,
-    ``runtime_to_target``, ``runtime_ecdf``, ``distinct`` and ``best_known`` (one row: objective, m_f, source)."""
+    ``runtime_to_target``, ``runtime_ecdf``, ``ert_ratios``, ``ert_pairs`` (:func:`~amorgs.ablation.global_search.paired_ratios`), ``distinct`` and ``best_known`` (one row: objective, m_f, source)."""
     study.check()
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # before the workers import numpy
         os.environ.setdefault(key, "1")
@@ -202,6 +203,7 @@ def summarize(study: GlobalStudy, events: pd.DataFrame, solutions: pd.DataFrame)
         "runtime_to_target": runtime_to_target(events, best, study.deltas, seed=study.seed, budget=study.budget),
         "runtime_ecdf": runtime_ecdf(events, best, study.deltas, budget=study.budget),
         "ert_ratios": ert_ratios(events, best, study.deltas, seed=study.seed, budget=study.budget),
+        "ert_pairs": paired_ratios(events, best, study.deltas, seed=study.seed, budget=study.budget),
         "distinct": distinct_near_best(solutions, best, study.deltas) if len(solutions) else pd.DataFrame(),
         "best_known": pd.DataFrame([{"alpha": study.alpha, "objective": best, "m_f": -best, "source": source,
                                      "library_rows": len(library), "library_best_m_f": -lib_best}]),
