@@ -46,12 +46,10 @@ from amorgs.checkout import (
 from amorgs.config import load_config
 from amorgs.data.io import write_json
 from amorgs.errors import InputError
-from amorgs.reference import CONFIG_COPY, STARTS_FILE, starts_identity, verify_reference
+from amorgs.reference import CONFIG_COPY, REGISTRY, STARTS_FILE, starts_identity, verify_reference
 from amorgs.solvers.codegen import cache_dir
 from amorgs.tracking import git_state, package_versions
 
-#: The registry of every committed reference's route, relative to the repository root.
-REGISTRY = Path("reference") / "certification.json"
 ROUTES = ("today", "commit", "historical")
 
 

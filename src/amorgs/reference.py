@@ -60,6 +60,9 @@ SOLVE_RULES = ("generate", "transfer", "ablation_cell", "ablation_cell_replicate
 START_RULES = ("ablation_cell", "ablation_cell_replicate", "ablation_cell_fraction")
 #: The compact per-start table of a reference.
 STARTS_FILE = "starts.parquet"
+#: The registry of every committed reference's certification route, relative to the repository root
+#: (:mod:`amorgs.certification`).
+REGISTRY = Path("reference") / "certification.json"
 #: Its columns besides ``guess_*`` (those present in the cell tables, in this order), then ``cell``: the cell
 #: table's path under ``results/``.
 START_COLUMNS = ("problem", "sampler", "model_seed", "alpha", "seed", "start", "reuse_alpha", "reuse_pool_size",
@@ -387,6 +390,12 @@ def export_global_study(dest: str | Path, study, command: str) -> dict:
     files = [{"file": p.relative_to(dst).as_posix(), "sha256": sha256_file(p), "bytes": p.stat().st_size}
              for p in sorted(dst.rglob("*")) if p.is_file() and p.relative_to(dst).as_posix() not in skip]
     state = git_state(Path.cwd())
+    if state["git_dirty"] == "true":  # the study's own outputs (and its registry entry) written into the checkout
+        from amorgs.checkout import dirty_files, repository_root
+
+        root = repository_root(".")
+        others = [f for f in dirty_files(root) if f != REGISTRY.as_posix() and not (root / f).resolve().is_relative_to(dst.resolve())]
+        state["git_dirty"] = str(bool(others)).lower()
     manifest = {
         "kind": "global-search",
         "config_file": CONFIG_COPY,
