@@ -80,23 +80,23 @@ def read_registry(repo: str | Path = ".") -> dict:
     return registry
 
 
-def reference_name(dest: str | Path) -> str:
-    """The registry's name of a reference directory: its path under the repository's ``reference/``."""
+def _under_reference(dest: str | Path) -> str | None:
+    """The path of ``dest`` under the ``reference/`` folder of the repository holding it, None if it lies elsewhere."""
     dst = Path(dest).resolve()
     try:
         return dst.relative_to(repository_root(dst.parent if dst.parent.exists() else ".") / "reference").as_posix()
     except (ValueError, InputError):
-        return dst.name
+        return None
+
+
+def reference_name(dest: str | Path) -> str:
+    """The registry's name of a reference directory: its path under the repository's ``reference/``."""
+    return _under_reference(dest) or Path(dest).resolve().name
 
 
 def under_reference(dest: str | Path) -> bool:
     """Whether ``dest`` lies under the ``reference/`` folder of the repository holding it (a committed reference)."""
-    dst = Path(dest).resolve()
-    try:
-        dst.relative_to(repository_root(dst.parent if dst.parent.exists() else ".") / "reference")
-    except (ValueError, InputError):
-        return False
-    return True
+    return _under_reference(dest) is not None
 
 
 def record_entry(dest: str | Path, entry: dict) -> Path:

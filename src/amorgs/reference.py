@@ -373,7 +373,6 @@ def export_global_study(dest: str | Path, study, command: str) -> dict:
     as an override of the typed config: what a certificate re-solves with) and :data:`MANIFEST` (every file's
     SHA-256, the identity the starts record, the commit, packages, ``command``); returns the manifest.  ``study``
     is the :class:`~amorgs.ablation.global_study.GlobalStudy` that ran (or whose events were recomputed)."""
-
     from amorgs.ablation.global_study import certifiable_starts
 
     dst = Path(dest)
@@ -394,7 +393,8 @@ def export_global_study(dest: str | Path, study, command: str) -> dict:
         from amorgs.checkout import dirty_files, repository_root
 
         root = repository_root(".")
-        others = [f for f in dirty_files(root) if f != REGISTRY.as_posix() and not (root / f).resolve().is_relative_to(dst.resolve())]
+        others = [f for f in dirty_files(root)
+                  if f != REGISTRY.as_posix() and not (root / f).resolve().is_relative_to(dst.resolve())]
         state["git_dirty"] = str(bool(others)).lower()
     manifest = {
         "kind": "global-search",

@@ -223,8 +223,6 @@ def cmd_global_search(args: argparse.Namespace) -> None:
 
     import shlex
 
-    import numpy as np
-
     from amorgs.ablation.global_study import GlobalStudy, compare, run_study
     from amorgs.certification import record_entry, under_reference
     from amorgs.data.io import atomic_path, check_writable_folder, write_parquet
@@ -282,7 +280,7 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     if len(pairs):
         print("ERT ratios (95 % bootstrap; below 1 = faster): hopping ÷ multi-start from the same sampler, and each "
               "sampler ÷ reuse under the same strategy:")
-        for r in pairs[np.isfinite(pairs["ratio"])].itertuples(index=False):
+        for r in pairs[pairs["ratio"].map(math.isfinite)].itertuples(index=False):
             print(f"  δ = {r.delta:g} kg: {r.strategy} × {r.sampler} ÷ {r.baseline}: {r.ratio:.2f} "
                   f"({r.ratio_lo:.2f}–{r.ratio_hi:.2f})")
     print(f"{dest}: events.parquet, solutions.parquet, study.json, runtime_to_target.{{csv,md}}, runtime_ecdf.csv, "

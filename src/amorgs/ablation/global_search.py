@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
+from amorgs.ablation.arms import REUSE_ARM
 from amorgs.analysis.diversity import DiversityParams, diverse_subset
 from amorgs.solvers.basin_hopping import STRATEGIES, HopSettings, search
 
@@ -208,12 +209,8 @@ def ert_ratios(events: pd.DataFrame, best: float, deltas=DELTAS, baseline: tuple
     return pd.DataFrame(rows)
 
 
-#: The sampler every other is compared with in :func:`paired_ratios` (reuse of the nearest library α).
-REUSE_SAMPLER = "nearest_alpha"
-
-
 def paired_ratios(events: pd.DataFrame, best: float, deltas=DELTAS, n_boot: int = 2000, seed: int = 0,
-                  budget: float = math.inf, reuse: str = REUSE_SAMPLER) -> pd.DataFrame:
+                  budget: float = math.inf, reuse: str = REUSE_ARM) -> pd.DataFrame:
     """The two questions of a strategy × sampler study, as ERT ratios with :func:`ert_ratios`'s intervals:
     ``question`` "hopping" — each basin-hopping cell ÷ multi-start from the *same* sampler (does hopping pay?) —
     and "sampler" — each sampler's cell ÷ ``reuse``'s under the *same* strategy (does a sampler beat reuse, and
