@@ -6,7 +6,7 @@ re-trained with ``--config "cr3bp_models={max_rows_per_alpha: 1000000, validatio
 have the same ablation cells: the same test α, arms, seeds and starts per arm; only the learned arms' samples
 differ.  For every learned arm and test α this prints the high-quality counts and aRT (IPOPT iterations per
 high-quality solution) of both runs and aRT(bounded) ÷ aRT(full) with a percentile bootstrap 95 % interval over
-each run's starts (``amorgs.ablation.statistics``: below 1, bounded is faster), then the ratio pooled over the
+each run's starts (``amorgs.ablation.running_time``: below 1, bounded is faster), then the ratio pooled over the
 test α.  Writes the table to ``docs/performance.md`` (section ``bounded-training-ablation``)::
 
     python benchmarks/bounded_training_ablation.py --bounded RUN_A/results --full RUN_B/results
@@ -22,7 +22,8 @@ import numpy as np
 import pandas as pd
 
 from amorgs.ablation.arms import LEARNED_SAMPLER_NAMES
-from amorgs.ablation.statistics import _art, _found_counter, _ratio_boot, high_quality, solve_costs
+from amorgs.ablation.statistics import high_quality
+from amorgs.ablation.running_time import _art, _found_counter, _ratio_boot, solve_costs
 from amorgs.problems.cr3bp import BETA_KG
 
 sys.path.insert(0, str(Path(__file__).parent))

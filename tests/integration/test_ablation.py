@@ -59,10 +59,10 @@ def _library_high_quality(beta_kg: float = 415.0):
 
 
 def test_iteration_cap_equals_a_real_capped_resolve():
-    """The post-hoc iteration cap of statistics.iteration_capped equals re-solving under max_iter = cap:
+    """The post-hoc iteration cap of running_time.iteration_capped equals re-solving under max_iter = cap:
     IPOPT is deterministic, so a start converging in k iterations converges identically under a cap of k and
     is stopped (not converged) under a cap below k."""
-    from amorgs.ablation.statistics import iteration_capped
+    from amorgs.ablation.running_time import iteration_capped
     from amorgs.models.samplers import NearestAlphaSampler
     from amorgs.solvers.multistart import solve_guesses
 

@@ -168,7 +168,7 @@ def test_beta_sweep_is_monotone_in_beta():
 
 
 def test_expected_running_time_and_speedups(three_arms):
-    from amorgs.ablation.statistics import expected_running_time
+    from amorgs.ablation.running_time import expected_running_time
 
     ert = expected_running_time(three_arms, 415.0, n_boot=500, seed=1)
     it = ert[ert["unit"] == "iterations"].set_index("sampler")
@@ -195,7 +195,7 @@ def test_expected_running_time_and_speedups(three_arms):
 
 
 def test_learning_curve_compares_each_fraction_with_uniform_and_reuse(three_arms):
-    from amorgs.ablation.statistics import expected_running_time, learning_curve
+    from amorgs.ablation.running_time import expected_running_time, learning_curve
 
     # AmorGS with models that saw 10 % of the data: 1 HQ of 6 in 600 iterations
     partial = arm("amorgs", [100] * 6, [1, 0, 0, 0, 0, 0]).assign(data_fraction=0.1)
@@ -213,7 +213,7 @@ def test_learning_curve_compares_each_fraction_with_uniform_and_reuse(three_arms
 
 
 def test_seed_spread_per_model_seed(three_arms):
-    from amorgs.ablation.statistics import seed_spread
+    from amorgs.ablation.running_time import seed_spread
 
     assert seed_spread(three_arms, 415.0).empty  # one seed: nothing to spread
     two = pd.concat([three_arms.assign(model_seed=11), three_arms.assign(model_seed=12)], ignore_index=True)
@@ -228,7 +228,7 @@ def test_seed_spread_per_model_seed(three_arms):
 
 
 def test_expected_running_time_when_nothing_found():
-    from amorgs.ablation.statistics import expected_running_time
+    from amorgs.ablation.running_time import expected_running_time
 
     df = pd.concat([arm("uniform", [100, 100], [0, 0]), arm("amorgs", [10, 10], [1, 0])])
     it = expected_running_time(df, 415.0, n_boot=100).query("unit == 'iterations'").set_index("sampler")
@@ -237,7 +237,7 @@ def test_expected_running_time_when_nothing_found():
 
 
 def test_iteration_capped_is_a_real_cap(three_arms):
-    from amorgs.ablation.statistics import iteration_capped
+    from amorgs.ablation.running_time import iteration_capped
 
     t = iteration_capped(three_arms, 415.0, caps=[100, 1000], max_iter=1000)
     c100 = t[t["cap_iterations"] == 100].set_index("sampler")
@@ -255,7 +255,7 @@ def test_iteration_capped_is_a_real_cap(three_arms):
 
 
 def test_anytime_curves():
-    from amorgs.ablation.statistics import anytime_curves
+    from amorgs.ablation.running_time import anytime_curves
 
     # HQ at starts 0, 2, 3; start 3 repeats start 0's times (not a new optimum), start 2 is 4 TU away (new)
     df = arm("amorgs", [10, 20, 30, 40], [1, 0, 1, 1], m_f=[420.0, 300.0, 433.0, 425.0], tau_s=[18, 18, 22, 18])
@@ -279,7 +279,7 @@ def test_fig22_iteration_capped_draws_when_no_ratio_is_defined():
 
 
 def test_break_even_is_upfront_over_the_saving_per_alpha():
-    from amorgs.ablation.statistics import break_even
+    from amorgs.ablation.running_time import break_even
 
     # uniform: 600 iterations × 0.01 s for 1 HQ → 6 s per HQ; reuse: 40 iterations for 2 HQ → 0.2 s per HQ
     df = pd.concat([arm("uniform", [100, 200, 300], [1, 0, 0]), arm("nearest_alpha", [10, 10, 20], [1, 1, 0]),
@@ -315,7 +315,7 @@ def test_first_come_diverse_keeps_new_optima_in_order():
 
 
 def test_expected_running_time_per_distinct_optimum():
-    from amorgs.ablation.statistics import expected_running_time
+    from amorgs.ablation.running_time import expected_running_time
 
     # reuse: 4 HQ of 4 starts, but starts 1 and 3 land where 0 did (a repeated pool row): 2 distinct optima;
     # amorgs: 2 HQ of 4, both distinct; uniform: 1 HQ
@@ -344,7 +344,7 @@ def test_expected_running_time_per_distinct_optimum():
 
 
 def test_the_interval_per_distinct_optimum_brackets_its_estimate():
-    from amorgs.ablation.statistics import art_interval, expected_running_time
+    from amorgs.ablation.running_time import art_interval, expected_running_time
 
     # 100 starts landing in 40 basins (τ_s 1 TU apart, far beyond η): a resample holds ≈ 63 of the starts, so
     # recounting the distinct optima per resample found ≈ 30 % fewer and put the whole interval above the aRT
@@ -375,7 +375,7 @@ def test_reuse_pools_say_how_the_reuse_arm_drew():
 
 
 def test_anytime_bands_bracket_the_curve():
-    from amorgs.ablation.statistics import anytime_bands
+    from amorgs.ablation.running_time import anytime_bands
 
     df = arm("amorgs", [10, 20, 30, 40], [1, 0, 1, 1], m_f=[420.0, 300.0, 433.0, 425.0], tau_s=[18, 18, 22, 30])
     b = anytime_bands(df, 415.0, eta=0.02, n_boot=300, seed=1, points=11)
@@ -390,7 +390,8 @@ def test_anytime_bands_bracket_the_curve():
 
 
 def test_iteration_capped_ratio_intervals(three_arms):
-    from amorgs.ablation.statistics import iteration_capped, ratio_of_rates_interval
+    from amorgs.ablation.statistics import ratio_of_rates_interval
+    from amorgs.ablation.running_time import iteration_capped
 
     t = iteration_capped(three_arms, 415.0, caps=[100, 1000], max_iter=1000, n_boot=300, seed=2)
     row = t[(t["cap_iterations"] == 1000) & (t["sampler"] == "amorgs")].iloc[0]
@@ -437,7 +438,7 @@ def test_ablation_figures_label_and_bound_what_they_plot(ablation):
 
 
 def test_speedup_figure_compares_with_reuse_per_distinct_optimum(three_arms):
-    from amorgs.ablation.statistics import expected_running_time
+    from amorgs.ablation.running_time import expected_running_time
     from amorgs.figures.ablation import ablation_speedups
 
     ert = expected_running_time(three_arms, 415.0, n_boot=50)

@@ -14,7 +14,8 @@ import yaml
 
 from amorgs import steps
 from amorgs.ablation.frontier import FrontierRun, frontier_metrics, frontier_table, gap, leave_one_out, sparse_grid
-from amorgs.ablation.statistics import art_interval, high_quality
+from amorgs.ablation.statistics import high_quality
+from amorgs.ablation.running_time import art_interval
 from amorgs.alphas import alpha_label, rows_at, rows_at_any
 from amorgs.config import load_config
 from amorgs.errors import ConfigError

@@ -11,7 +11,7 @@ Two parts, both pure (no file IO):
   seeds, the expected running time aRT (IPOPT iterations, primary; CPU seconds) with a bootstrap interval,
   and the ratio aRT(learned) ÷ aRT(reuse) with its bootstrap interval (< 1: the learned arm needs less to
   find a high-quality solution than reuse does), against the gap Δα = |α_test − α_nearest| (N) and the
-  relative gap Δα / α_test.  Every statistic comes from :mod:`amorgs.ablation.statistics`.
+  relative gap Δα / α_test.  Every statistic comes from :mod:`amorgs.ablation.running_time`.
 
 α identity is the three-decimal label of :mod:`amorgs.alphas` throughout.
 """
@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from amorgs.ablation.arms import BASELINE_ARM, REUSE_ARM
-from amorgs.ablation.statistics import ERT_TARGETS, art_interval, expected_running_time
+from amorgs.ablation.running_time import ERT_TARGETS, art_interval, expected_running_time
 from amorgs.alphas import alpha_label, alpha_value, distinct_alphas, same_alpha
 from amorgs.errors import InputError
 
@@ -111,7 +111,7 @@ def frontier_table(
     α), ``sampler``, ``target`` (``high_quality``: aRT per high-quality solution; ``distinct``: per new
     η-distinct high-quality optimum, Eq. 12), ``unit`` (``iterations``: IPOPT iterations, primary;
     ``cpu_s``: CPU seconds), ``n`` (starts pooled over the ``model_seeds`` cells), ``k_found``, ``aRT`` with
-    its bootstrap 95 % interval ``aRT_ci95_low/high`` (:func:`~amorgs.ablation.statistics.art_interval`),
+    its bootstrap 95 % interval ``aRT_ci95_low/high`` (:func:`~amorgs.ablation.running_time.art_interval`),
     ``speedup`` = aRT(baseline) ÷ aRT(arm) with its interval, and — for the ``learned`` arms —
     ``ratio_to_reuse`` = aRT(arm) ÷ aRT(reuse) with its interval (< 1: the learned arm wins; NaN elsewhere).
     ``aRT_oracle`` is the arm's oracle bound, its aRT had it solved only the starts that found something, and

@@ -23,20 +23,15 @@ import numpy as np
 import pandas as pd
 
 from amorgs.ablation.arms import BASELINE_ARM, REUSE_ARM, SAMPLER_NAMES, arm_label
-from amorgs.ablation.statistics import (
+from amorgs.ablation.statistics import capped_study, high_quality, hyperplane_coverage, rates, reuse_pools, table6
+from amorgs.ablation.running_time import (
     anytime_bands,
     anytime_curves,
     break_even,
-    capped_study,
     expected_running_time,
-    high_quality,
-    hyperplane_coverage,
     iteration_capped,
     learning_curve,
-    rates,
-    reuse_pools,
     seed_spread,
-    table6,
 )
 from amorgs.ablation.studies import STUDIES
 from amorgs.ablation.summary import AblationSummary

@@ -5,8 +5,8 @@ MLflow metrics), the name of its table (``results/tables/<stem>.csv``), the titl
 (``<stem>.md``; none: CSV only) and whether a config may leave it empty.  :func:`amorgs.ablation.report.summarize`
 runs them in table order, the ablation report step writes and logs what they return, the rule's outputs
 (:func:`table_files`) and ``check-outputs`` (:data:`OPTIONAL_STEMS`) come from here.  Adding a study: its function
-(in :mod:`amorgs.ablation.report`, on the statistics of :mod:`amorgs.ablation.statistics`) and one
-:class:`Study` below.
+(in :mod:`amorgs.ablation.report`, on the statistics of :mod:`amorgs.ablation.statistics` and
+:mod:`amorgs.ablation.running_time`) and one :class:`Study` below.
 
 The function is a dotted name ``"package.module:callable"`` resolved only when the report runs, so this module
 imports neither pandas nor the statistics (the workflow reads the table when it plans the DAG).

@@ -257,7 +257,7 @@ _ANYTIME_X = {"iterations": ("iterations_cumulative", "cumulative IPOPT iteratio
 def ablation_anytime(curves: pd.DataFrame, bands: pd.DataFrame) -> Figure:
     """Anytime curves per α (rows): best high-quality m_f and the number of new η-distinct optima, each vs
     cumulative IPOPT iterations and CPU s (columns); the arm's starts in order (steps) with the bootstrap
-    95 % band of :func:`amorgs.ablation.statistics.anytime_bands` (shaded)."""
+    95 % band of :func:`amorgs.ablation.running_time.anytime_bands` (shaded)."""
     alphas = distinct_alphas(curves["alpha"])
     fig = Figure(figsize=(19, 3.8 * len(alphas)), layout="tight")
     axes = fig.subplots(len(alphas), len(ANYTIME_PANELS), squeeze=False)
