@@ -9,6 +9,7 @@ import pytest
 from amorgs.models.baselines import UniformSampler
 from amorgs.models.selector import (
     FEATURES,
+    SampledSelectorSampler,
     SelectedProposalSampler,
     SelectorSampler,
     TransferSelector,
@@ -97,6 +98,30 @@ def test_the_arm_draws_every_training_alpha_in_the_selectors_order():
     np.testing.assert_array_equal(first[30:], first[:15])  # beyond the candidates: the order again
     np.testing.assert_array_equal(first, sampler.sample(0.55, 45, np.random.default_rng(99)))  # no randomness
     assert not set(map(tuple, first[:, :4])) & set(map(tuple, hq[hq["alpha"] == 0.8][list(NAMES[:4])].to_numpy()))
+
+
+def test_the_sampled_arm_draws_an_order_per_rng_that_favours_the_selectors_choice():
+    """Issue 41: selector_sampled draws the same candidates in a Plackett–Luce order (weights 1 / score) seeded by
+    the rng — the same rng gives the same order, another rng another one — and puts low-score candidates first
+    far more often than a uniform order would."""
+    rng = np.random.default_rng(0)
+    hq = pd.DataFrame(PROBLEM.sample_uniform(0.5, 60, rng), columns=NAMES)
+    hq["m_f"] = 420.0
+    hq["alpha"] = np.repeat([0.4, 0.5, 0.6], 20)
+    selector = TransferSelector().fit(synthetic_transfers(), NAMES)
+    ranked = SelectorSampler(PROBLEM, hq, (0.4, 0.5, 0.6), selector)
+    sampled = SampledSelectorSampler(PROBLEM, hq, (0.4, 0.5, 0.6), selector)
+    assert sampled.name == "selector_sampled"
+    rows, scores = ranked.ranked(0.55)
+    a = sampled.sample(0.55, 60, np.random.default_rng(1))
+    np.testing.assert_array_equal(a, sampled.sample(0.55, 60, np.random.default_rng(1)))
+    assert not np.array_equal(a, sampled.sample(0.55, 60, np.random.default_rng(2)))
+    assert sorted(map(tuple, a)) == sorted(map(tuple, rows))  # every candidate once, none invented
+    np.testing.assert_array_equal(sampled.sample(0.55, 75, np.random.default_rng(1))[60:], a[:15])
+    # the first draw's score, over many rngs, lies well below a uniform pick's mean score
+    score_of = {tuple(r): s for r, s in zip(rows, scores)}
+    first = np.mean([score_of[tuple(sampled.sample(0.55, 1, np.random.default_rng(k))[0])] for k in range(200)])
+    assert first < 0.8 * scores.mean() and first > scores.min()
 
 
 def test_selection_on_top_of_generation_solves_the_best_ranked_proposals():

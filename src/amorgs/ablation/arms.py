@@ -105,6 +105,9 @@ ARMS: tuple[Arm, ...] = (
     # issue 38 §2: every training α's solutions, in the order a selector trained on transfer data ranks them
     Arm("selector", "Known solutions ranked by a learned transfer selector", "amorgs.models.selector:SelectorSampler.build",
         high_quality=True, pooled=True, transfer=True),
+    # issue 41: the same candidates in a random order weighted by the selector (independent global searches)
+    Arm("selector_sampled", "Known solutions drawn in proportion to the transfer selector's predicted rate",
+        "amorgs.models.selector:SampledSelectorSampler.build", high_quality=True, pooled=True, transfer=True),
     # issue 38 §3: AmorGS draws several times the budget, the selector picks which proposals to solve
     Arm("amorgs_selected", "AmorGS proposals ranked by the transfer selector",
         "amorgs.models.selector:SelectedProposalSampler.build_amorgs", models=("cvae_gmm", "lstm"), transfer=True),

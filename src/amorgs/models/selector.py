@@ -18,6 +18,9 @@ from the transfer data (:mod:`amorgs.steps.transfer`: solutions of one training 
   times lie within η (Eq. 12's distance on (τ_s/40, τ_i/15, τ_f/15)) of one already chosen — a proxy of its
   landing basin, so that a designer gets different trajectories — until the distinct ones are used up, then
   the skipped ones in score order;
+* :class:`SampledSelectorSampler` (arm ``selector_sampled``, issue 41) — the same candidates in a random order
+  that favours the same ones (Plackett–Luce with weights 1 / score, drawn with the caller's ``rng``): a global
+  search needs independent searches, and the ``selector`` arm's single ranking makes every search the same;
 * :class:`SelectedProposalSampler` (arm ``amorgs_selected``, issue 38 §3) — selection on top of generation:
   ``oversample`` × n proposals of a generator (AmorGS) at the target α, the n that the same selector ranks best
   (the same :func:`selection_order`) solved.  A proposal is a guess made *for* the target α, so it is scored as a
@@ -178,31 +181,60 @@ class SelectorSampler:
         self.problem = problem
         self.by_alpha = training_rows(high_quality, train_alphas, problem.variable_names)
         self.selector, self.eta = selector, float(eta)
-        self._orders: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._candidates: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     @classmethod
     def build(cls, problem, inputs) -> SelectorSampler:
         return cls(problem, inputs.high_quality, inputs.train_alphas, inputs.models["selector"])
 
-    def ranked(self, alpha: float) -> tuple[np.ndarray, np.ndarray]:
-        """(candidates in selection order (m, 3N+4), their scores) at ``alpha``."""
+    def candidates(self, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(candidates (m, 3N+4), their scores at ``alpha``, their times (m, 3) in TU), in the training table's
+        order; computed once per α."""
         key = float(alpha)
-        if key not in self._orders:
+        if key not in self._candidates:
             names = self.problem.variable_names
             x = np.vstack(list(self.by_alpha.values()))
             source = np.concatenate([np.full(len(v), a) for a, v in self.by_alpha.items()])
             scores = self.selector.score(transfer_features(x, source, key, names))
             times = x[:, [list(names).index(n) for n in ("tau_s", "tau_i", "tau_f")]]
-            order = selection_order(scores, times, self.eta)
-            self._orders[key] = (x[order], scores[order])
-        return self._orders[key]
+            self._candidates[key] = (x, scores, times)
+        return self._candidates[key]
+
+    def ranked(self, alpha: float) -> tuple[np.ndarray, np.ndarray]:
+        """(candidates in selection order (m, 3N+4), their scores) at ``alpha``."""
+        x, scores, times = self.candidates(alpha)
+        order = selection_order(scores, times, self.eta)
+        return x[order], scores[order]
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
-        from amorgs.models.baselines import make_valid
-
         rows, _ = self.ranked(alpha)
-        repeats = math.ceil(n / len(rows)) if len(rows) else 0
-        return make_valid(np.tile(rows, (max(repeats, 1), 1))[:n], self.problem)
+        return _repeated(rows, n, self.problem)
+
+
+class SampledSelectorSampler(SelectorSampler):
+    """Arm ``selector_sampled``: the ``selector`` arm's candidates in a random order drawn with ``rng`` — a
+    Plackett–Luce order with weights 1 / score (a candidate's predicted high-quality solutions per IPOPT
+    iteration), drawn by the Gumbel-top-k trick (Kool, van Hoof & Welling 2019: sort log w + Gumbel noise) —
+    then :func:`selection_order`'s η-deferral.  The ``selector`` arm's order is one deterministic ranking, so
+    every search of a global search (and every model seed's cell) starts from the same candidates; here each
+    call of :meth:`sample` is its own order, which still puts cheap, likely transfers first on average (the
+    first candidate is candidate i with probability w_i / Σ w).  Draws beyond the candidates repeat that call's
+    order.  Scores below one iteration count as one."""
+
+    name = "selector_sampled"
+
+    def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
+        x, scores, times = self.candidates(alpha)
+        keys = np.log(np.maximum(scores, 1.0)) - rng.gumbel(size=len(scores))  # ascending: −(log w + G)
+        return _repeated(x[selection_order(keys, times, self.eta)], n, self.problem)
+
+
+def _repeated(rows: np.ndarray, n: int, problem) -> np.ndarray:
+    """The first ``n`` of ``rows`` repeated as often as needed, made valid for ``problem``."""
+    from amorgs.models.baselines import make_valid
+
+    repeats = math.ceil(n / len(rows)) if len(rows) else 0
+    return make_valid(np.tile(rows, (max(repeats, 1), 1))[:n], problem)
 
 
 class SelectedProposalSampler:
