@@ -119,8 +119,9 @@ def test_one_cr3bp_mbh_cell_on_ipopt():
     solver = problem.make_local_solver({"max_iter": 300})
     cell = Cell(sampler="uniform", strategy="mbh", alpha=1.0, searches=2, budget=800, seed=3,
                 hops=HopSettings(scale=0.01, patience=4))
-    events, solutions = run_cell(cell, problem.sample_uniform, solver.solve, problem.lower, problem.upper,
+    events, solutions = run_cell(cell, problem.sample_uniform, solver, problem.lower, problem.upper,
                                  problem.variable_names)
+    assert (events["options_hash"] == solver.options_hash).all()  # every event says which options solved it
     assert set(events["search"]) == {0, 1} and (events.groupby("search")["cumulative_iterations"].max() >= 800).all()
     assert len(solutions) == int(events["converged"].sum()) >= 1
     np.testing.assert_allclose(solutions["objective"], -solutions["m_f"], rtol=0, atol=1e-9)

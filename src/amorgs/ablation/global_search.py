@@ -80,35 +80,41 @@ def _starts(sample, alpha: float, rng: np.random.Generator, batch: int = START_B
     return next_start
 
 
-def run_search(cell: Cell, r: int, sample, solve, lower: np.ndarray, upper: np.ndarray,
-               variable_names: tuple[str, ...], solve_hop=None) -> tuple[list[dict], list[dict]]:
-    """Search ``r`` of ``cell``: ``sample(alpha, n, rng)`` is the sampler, ``solve(x0, alpha)`` the local solver,
-    the generator ``default_rng([cell.seed, r])`` draws both its starts and its hops.  Returns its event rows
-    (the cell's keys, ``search``, :class:`~amorgs.solvers.basin_hopping.SearchTrace`'s columns, ``stop`` and the
-    guess the solve started from as ``guess_<name>`` columns, so a sample can be re-solved) and
-    its feasible solutions (the cell's keys, ``search``, ``event``, ``objective`` and the stored vector as named
-    columns)."""
+def run_search(cell: Cell, r: int, sample, solver, lower: np.ndarray, upper: np.ndarray,
+               variable_names: tuple[str, ...], hop_solver=None) -> tuple[list[dict], list[dict]]:
+    """Search ``r`` of ``cell``: ``sample(alpha, n, rng)`` is the sampler, ``solver`` the local solver
+    (``solver.solve(x0, alpha)`` → :class:`~amorgs.solvers.record.SolveRecord`, ``solver.options_hash``) and
+    ``hop_solver`` the one that re-solves hops where it differs (``mbh_warm``); the generator
+    ``default_rng([cell.seed, r])`` draws both the starts and the hops.  Returns its event rows (the cell's keys,
+    ``search``, :class:`~amorgs.solvers.basin_hopping.SearchTrace`'s columns, ``stop``, the ``options_hash`` of
+    the solver that solved it and the guess it started from as ``guess_<name>`` columns, so a sample can be
+    re-solved and certified) and its feasible solutions (the cell's keys, ``search``, ``event``, ``objective``
+    and the stored vector as named columns)."""
     settings = strategy_settings(cell.strategy, cell.hops)
     keys = {"sampler": cell.sampler, "strategy": cell.strategy, "alpha": cell.alpha}
     rng = np.random.default_rng([cell.seed, r])
-    hop_solve = (lambda x0: solve_hop(x0, cell.alpha)) if solve_hop is not None else None
-    trace = search(lambda x0: solve(x0, cell.alpha), _starts(sample, cell.alpha, rng), lower, upper, settings,
-                   cell.budget, rng, hop_solve)
+    hop_solve = (lambda x0: hop_solver.solve(x0, cell.alpha)) if hop_solver is not None else None
+    trace = search(lambda x0: solver.solve(x0, cell.alpha), _starts(sample, cell.alpha, rng), lower, upper,
+                   settings, cell.budget, rng, hop_solve)
     guess_names = [f"guess_{name}" for name in variable_names]
-    events = [{**keys, "search": r, **e, "stop": trace.stop, **dict(zip(guess_names, map(float, x0)))}
-              for e, x0 in zip(trace.events, trace.guesses)]
+
+    def options_hash(kind: str) -> str:
+        return (hop_solver if hop_solver is not None and kind == "hop" else solver).options_hash
+
+    events = [{**keys, "search": r, **e, "stop": trace.stop, "options_hash": options_hash(e["kind"]),
+               **dict(zip(guess_names, map(float, x0)))} for e, x0 in zip(trace.events, trace.guesses)]
     objective = {e["solve"]: e["objective"] for e in trace.events}
     solutions = [{**keys, "search": r, "event": i, "objective": objective[i], **dict(zip(variable_names, x))}
                  for i, x in trace.solutions]
     return events, solutions
 
 
-def run_cell(cell: Cell, sample, solve, lower: np.ndarray, upper: np.ndarray,
-             variable_names: tuple[str, ...], solve_hop=None) -> tuple[pd.DataFrame, pd.DataFrame]:
+def run_cell(cell: Cell, sample, solver, lower: np.ndarray, upper: np.ndarray,
+             variable_names: tuple[str, ...], hop_solver=None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Every search of ``cell`` in this process (:func:`run_search`), as two tables: events and solutions."""
     events, solutions = [], []
     for r in range(cell.searches):
-        e, s = run_search(cell, r, sample, solve, lower, upper, variable_names, solve_hop)
+        e, s = run_search(cell, r, sample, solver, lower, upper, variable_names, hop_solver)
         events += e
         solutions += s
     return pd.DataFrame(events), pd.DataFrame(solutions)

@@ -135,11 +135,8 @@ def _search_task(task: tuple[Cell, int]) -> tuple[list[dict], list[dict]]:
     cell, r = task
     p = _WORKER["problem"]
     solver, hop_solver = _WORKER["solver"], _WORKER["hop_solver"] if cell.strategy == "mbh_warm" else None
-    events, solutions = run_search(cell, r, _WORKER["samplers"][cell.sampler].sample, solver.solve, p.lower, p.upper,
-                                   p.variable_names, hop_solver.solve if hop_solver is not None else None)
-    for e in events:  # which options solved it: a warm hop's are not the study's
-        e["options_hash"] = (hop_solver if hop_solver is not None and e["kind"] == "hop" else solver).options_hash
-    return events, solutions
+    return run_search(cell, r, _WORKER["samplers"][cell.sampler].sample, solver, p.lower, p.upper,
+                      p.variable_names, hop_solver)
 
 
 def certifiable_starts(events: pd.DataFrame, study: GlobalStudy) -> pd.DataFrame:

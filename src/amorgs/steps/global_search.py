@@ -72,11 +72,10 @@ def run_cell(job: Job, run) -> None:
     cell = Cell(sampler=s.sampler, strategy=s.strategy, alpha=s.alpha, searches=s.searches, budget=s.budget,
                 seed=s.seed, hops=HopSettings(distribution=s.hop_distribution, scale=s.hop_scale, shape=s.hop_shape,
                                               patience=s.patience))
-    solver = problem.make_local_solver(s.solver)
     warm = hop_solver_options(s.strategy, s.solver)
-    hop_solve = problem.make_local_solver(warm).solve if warm is not None else None
-    events, solutions = search_cell(cell, sampler.sample, solver.solve, problem.lower, problem.upper,
-                                    problem.variable_names, hop_solve)
+    events, solutions = search_cell(cell, sampler.sample, problem.make_local_solver(s.solver), problem.lower,
+                                    problem.upper, problem.variable_names,
+                                    problem.make_local_solver(warm) if warm is not None else None)
     if not len(events):
         raise InputError(f"global_search_cell: {s.sampler} gave no start at α = {s.alpha:g}")
     write_parquet(events, job.output["events"])
