@@ -222,8 +222,9 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     from pathlib import Path
 
     import shlex
+    import shutil
 
-    from amorgs.ablation.global_study import GlobalStudy, compare, run_study
+    from amorgs.ablation.global_study import CHECKPOINT_DIR, GlobalStudy, compare, run_study
     from amorgs.certification import record_entry, under_reference
     from amorgs.data.io import atomic_path, check_writable_folder, write_parquet
     from amorgs.errors import InputError
@@ -252,10 +253,12 @@ def cmd_global_search(args: argparse.Namespace) -> None:
             raise InputError(f"--from-events {source}: no {' or '.join(missing)} (a finished global-search --dest)")
         tables = summarize(study, pd.read_parquet(source / "events.parquet"),
                            pd.read_parquet(source / "solutions.parquet"))
-    else:
-        tables = run_study(study, args.workers)
+    else:  # each finished search is kept in dest/.searches until events.parquet holds it: a rerun resumes
+        tables = run_study(study, args.workers, checkpoint=dest / CHECKPOINT_DIR)
     for name in ("events", "solutions"):
         write_parquet(tables[name], dest / f"{name}.parquet")
+    if not args.from_events:
+        shutil.rmtree(dest / CHECKPOINT_DIR)  # its searches are in events.parquet now; not part of the reference
     readable = compare(tables["runtime_to_target"])
     texts = {f"{name}.csv": tables[name].to_csv(index=False)
              for name in ("runtime_to_target", "runtime_ecdf", "ert_ratios", "ert_pairs", "distinct", "best_known")}
@@ -586,7 +589,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                        description="R seeded searches per (strategy, sampler) at one α, each with the same budget of\n"
                                    "IPOPT iterations: multi-start, or monotonic basin hopping from the sampler's starts.\n"
                                    "Reports the expected iterations to come within δ of the best known m_f (library\n"
-                                   "and study), with bootstrap intervals, the runtime ECDF and distinct near-best ones.")
+                                   "and study), with bootstrap intervals, the runtime ECDF and distinct near-best ones.\n"
+                                   "Prints a line per finished search; each is kept in DEST/.searches until the tables\n"
+                                   "are written, so the same command, run again after an interruption, resumes.")
     p.add_argument("--alpha", type=float, required=True, help="the α (N) searched")
     p.add_argument("--samplers", nargs="+", default=["uniform", "nearest_alpha"], help="arms whose starts seed searches")
     p.add_argument("--strategies", nargs="+", default=["multistart", "mbh"],

@@ -325,8 +325,35 @@ def test_a_global_search_is_a_certifiable_reference(tmp_path):
     assert events["nlp_fingerprint"].str.len().eq(12).all() and events["options_hash"].nunique() == 1 + warm_hops.any()
     assert len(starts) == int((~warm_hops).sum()) and starts["options_hash"].nunique() == 1
     assert f"{int(len(starts))} of {len(events)} events re-solvable" in out.stdout
+    assert "global-search: 2/2 searches" in out.stderr and not (dest / ".searches").exists()  # progress, no leftovers
     manifest = verify_reference(dest)
     assert manifest["certifiable"]["events"] == len(starts) and manifest["identity"]["nlp_fingerprints"] == {
         "1": events["nlp_fingerprint"].iloc[0]}
     cert = certify_reference(dest, sample=3, seed=1)
     assert cert["exact"] and cert["sample"] == 3 and cert["route"] == "today"
+
+
+def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tables(tmp_path):
+    """Each finished search is saved at once (dest/.searches); a rerun of the same study solves only the searches
+    that are missing and gives the same events bit for bit; a study of other settings refuses the folder."""
+    from amorgs.ablation.global_study import GlobalStudy, run_study
+    from amorgs.errors import InputError
+    from amorgs.solvers.options import IpoptOptions
+
+    study = GlobalStudy(alpha=1.0, samplers=("uniform",), strategies=("multistart", "mbh"), searches=2, budget=300,
+                        hops=HopSettings(scale=0.005, patience=2), deltas=(50.0,), solver=IpoptOptions(max_iter=150))
+    folder = tmp_path / ".searches"
+    lines: list[str] = []
+    full = run_study(study, checkpoint=folder, report=lines.append)
+    saved = sorted(p.name for p in folder.glob("*--*.json"))
+    assert saved == ["mbh--uniform--0000.json", "mbh--uniform--0001.json", "multistart--uniform--0000.json",
+                     "multistart--uniform--0001.json"]
+    assert len(lines) == 4 and lines[-1].startswith("global-search: 4/4 searches")
+    (folder / "mbh--uniform--0001.json").unlink()  # as if killed before the last search finished
+    lines.clear()
+    again = run_study(study, checkpoint=folder, report=lines.append)
+    assert lines[0] == f"global-search: 3 of 4 searches resumed from {folder}" and len(lines) == 2
+    pd.testing.assert_frame_equal(again["events"], full["events"], check_exact=True)
+    pd.testing.assert_frame_equal(again["solutions"], full["solutions"], check_exact=True)
+    with pytest.raises(InputError, match=r"\.searches: holds the searches of a study with other settings"):
+        run_study(GlobalStudy(**{**study.__dict__, "budget": 400}), checkpoint=folder, report=lines.append)

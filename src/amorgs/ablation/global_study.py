@@ -9,11 +9,15 @@ the lowest of the library's verified rows at the study's α and of every feasibl
 
 from __future__ import annotations
 
+import json
 import os
-from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
+import sys
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from multiprocessing import get_context
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -160,24 +164,106 @@ def certifiable_starts(events: pd.DataFrame, study: GlobalStudy) -> pd.DataFrame
     return pd.concat([out, rows[guesses]], axis=1).reset_index(drop=True)
 
 
-def run_study(study: GlobalStudy, workers: int = 1) -> dict[str, pd.DataFrame]:
+#: The folder, under a study's destination, that holds each finished search while the study runs (one JSON file
+#: per search: its event rows and feasible solutions) — an interrupted study resumes from it, and the command
+#: removes it once the tables are written.
+CHECKPOINT_DIR = ".searches"
+
+
+def _identity(study: GlobalStudy) -> dict:
+    """What a checkpoint's searches must share with the study that resumes them: every setting of the searches
+    (:meth:`GlobalStudy.summary`) and the library and models the samplers draw on."""
+    return {**study.summary(), "library_dir": study.library_dir, "models_dir": study.models_dir}
+
+
+def _search_file(folder: Path, cell: Cell, r: int) -> Path:
+    return folder / f"{cell.strategy}--{cell.sampler}--{r:04d}.json"
+
+
+def _open_checkpoint(folder: Path, study: GlobalStudy) -> None:
+    """Create ``folder`` for ``study``'s searches, or check that the searches already in it are this study's
+    (``InputError`` naming the folder otherwise: a search of other settings must not join these tables)."""
+    from amorgs.data.io import atomic_path
+
+    folder.mkdir(parents=True, exist_ok=True)
+    marker = folder / "study.json"
+    want = json.loads(json.dumps(_identity(study)))
+    if marker.is_file():
+        if json.loads(marker.read_text()) != want:
+            raise InputError(f"{folder}: holds the searches of a study with other settings (its study.json); delete "
+                             "it or choose another --dest")
+        return
+    with atomic_path(marker) as tmp:
+        tmp.write_text(json.dumps(want, indent=1, sort_keys=True) + "\n")
+
+
+def _save_search(path: Path, result: tuple[list[dict], list[dict]]) -> None:
+    from amorgs.data.io import atomic_path
+
+    with atomic_path(path) as tmp:  # JSON keeps every float bit for bit (repr), NaN included
+        tmp.write_text(json.dumps({"events": result[0], "solutions": result[1]}))
+
+
+def _load_search(path: Path) -> tuple[list[dict], list[dict]]:
+    data = json.loads(path.read_text())
+    return data["events"], data["solutions"]
+
+
+def _progress_line(done: int, total: int, resumed: int, task: tuple[Cell, int], started: float) -> str:
+    cell, r = task
+    elapsed = time.monotonic() - started
+    ran = done - resumed
+    left = f", about {elapsed / ran * (total - done) / 60:.0f} min left" if ran and done < total else ""
+    return (f"global-search: {done}/{total} searches ({cell.strategy} × {cell.sampler}, search {r} done), "
+            f"{elapsed / 60:.1f} min{left}")
+
+
+def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | None = None,
+              report: Callable[[str], None] | None = None) -> dict[str, pd.DataFrame]:
     """Run every search of every cell on ``workers`` spawned processes (each builds its own solver and samplers;
     results do not depend on the number of workers) and compute the study's tables: ``events``, ``solutions``,
-    ``runtime_to_target``, ``runtime_ecdf``, ``ert_ratios``, ``ert_pairs`` (:func:`~amorgs.ablation.global_search.paired_ratios`), ``distinct`` and ``best_known`` (one row: objective, m_f, source)."""
+    ``runtime_to_target``, ``runtime_ecdf``, ``ert_ratios``, ``ert_pairs``
+    (:func:`~amorgs.ablation.global_search.paired_ratios`), ``distinct`` and ``best_known`` (one row: objective,
+    m_f, source).  With ``checkpoint`` (a folder), each finished search is saved there at once and searches
+    already saved by an interrupted run of the same study are not solved again (the same tables as an
+    uninterrupted run: every search is seeded on its own).  ``report`` receives a line per finished search
+    (default: standard error)."""
     study.check()
+    say = report or (lambda line: print(line, file=sys.stderr, flush=True))
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # before the workers import numpy
         os.environ.setdefault(key, "1")
-    hq, train = training_high_quality(study)
     tasks = [(cell, r) for cell in study.cells() for r in range(cell.searches)]
-    if workers <= 1:
+    folder = Path(checkpoint) if checkpoint is not None else None
+    results: dict[int, tuple[list[dict], list[dict]]] = {}
+    if folder is not None:
+        _open_checkpoint(folder, study)
+        results = {i: _load_search(_search_file(folder, *t)) for i, t in enumerate(tasks)
+                   if _search_file(folder, *t).is_file()}
+        if results:
+            say(f"global-search: {len(results)} of {len(tasks)} searches resumed from {folder}")
+    pending = [i for i in range(len(tasks)) if i not in results]
+    started, resumed = time.monotonic(), len(results)
+
+    def finished(i: int, result: tuple[list[dict], list[dict]]) -> None:
+        if folder is not None:
+            _save_search(_search_file(folder, *tasks[i]), result)
+        results[i] = result
+        say(_progress_line(len(results), len(tasks), resumed, tasks[i], started))
+
+    hq, train = training_high_quality(study)
+    if workers <= 1 and pending:
         _init_worker(study, hq, train)
-        results = [_search_task(t) for t in tasks]
-    else:
+        for i in pending:
+            finished(i, _search_task(tasks[i]))
+    elif pending:
         with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker,
                                  initargs=(study, hq, train)) as pool:
-            results = list(pool.map(_search_task, tasks))
-    events = pd.DataFrame([e for ev, _ in results for e in ev])
-    solutions = pd.DataFrame([s for _, so in results for s in so])
+            futures = {pool.submit(_search_task, tasks[i]): i for i in pending}
+            for future in as_completed(futures):
+                finished(futures[future], future.result())
+    ordered = [results[i] for i in range(len(tasks))]
+    events = pd.DataFrame([e for ev, _ in ordered for e in ev])
+    solutions = pd.DataFrame([s for _, so in ordered for s in so])
     return summarize(study, events, solutions)
 
 
