@@ -335,7 +335,8 @@ def test_a_global_search_is_a_certifiable_reference(tmp_path):
 
 def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tables(tmp_path):
     """Each finished search is saved at once (dest/.searches); a rerun of the same study solves only the searches
-    that are missing and gives the same events bit for bit; a study of other settings refuses the folder."""
+    that are missing and gives the same events bit for bit; a study of other settings or another library, or a
+    folder that does not say whose searches it holds, is refused."""
     from amorgs.ablation.global_study import GlobalStudy, run_study
     from amorgs.errors import InputError
     from amorgs.solvers.options import IpoptOptions
@@ -355,5 +356,9 @@ def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tabl
     assert lines[0] == f"global-search: 3 of 4 searches resumed from {folder}" and len(lines) == 2
     pd.testing.assert_frame_equal(again["events"], full["events"], check_exact=True)
     pd.testing.assert_frame_equal(again["solutions"], full["solutions"], check_exact=True)
-    with pytest.raises(InputError, match=r"\.searches: holds the searches of a study with other settings"):
-        run_study(GlobalStudy(**{**study.__dict__, "budget": 400}), checkpoint=folder, report=lines.append)
+    for other in ({"budget": 400}, {"library_dir": str(tmp_path / "another-library")}):  # settings, or the pools
+        with pytest.raises(InputError, match=r"\.searches: holds the searches of a study with other settings"):
+            run_study(GlobalStudy(**{**study.__dict__, **other}), checkpoint=folder, report=lines.append)
+    (folder / "study.json").unlink()
+    with pytest.raises(InputError, match=r"holds searches but no study\.json"):
+        run_study(study, checkpoint=folder, report=lines.append)

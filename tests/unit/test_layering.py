@@ -21,8 +21,8 @@ PACKAGE = SRC / "amorgs"
 
 #: (layer prefix, forbidden import prefixes, why)
 RULES = (
-    ("amorgs.figures", ("amorgs.ablation.statistics", "amorgs.ablation.report", "amorgs.models", "torch",
-                        "amorgs.analysis.structure_report", "amorgs.steps", "amorgs.cli"),
+    ("amorgs.figures", ("amorgs.ablation.statistics", "amorgs.ablation.running_time", "amorgs.ablation.report",
+                        "amorgs.models", "torch", "amorgs.analysis.structure_report", "amorgs.steps", "amorgs.cli"),
      "figures draw data handed to them: no statistics, no models, no torch"),
     *((layer, ("matplotlib", "mpl_toolkits", "amorgs.figures"), "data layers do not draw")
       for layer in ("amorgs.analysis", "amorgs.data", "amorgs.ablation", "amorgs.models", "amorgs.problems",

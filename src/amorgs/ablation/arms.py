@@ -30,7 +30,7 @@ from typing import Any
 
 from amorgs.models.names import PERTURBATION_SCALE, get_model, resolve
 
-#: Roles in the statistics (:mod:`amorgs.ablation.statistics`).  One arm each holds ``baseline``, ``reuse`` and
+#: Roles in the statistics (:mod:`amorgs.ablation.statistics`, :mod:`amorgs.ablation.running_time`).  One arm each holds ``baseline``, ``reuse`` and
 #: ``headline``; every other arm is ``compared`` against them.
 ROLES = {
     "baseline": "uniform multi-start: every speed-up, ratio of rates and break-even divides by it",

@@ -172,8 +172,16 @@ CHECKPOINT_DIR = ".searches"
 
 def _identity(study: GlobalStudy) -> dict:
     """What a checkpoint's searches must share with the study that resumes them: every setting of the searches
-    (:meth:`GlobalStudy.summary`) and the library and models the samplers draw on."""
-    return {**study.summary(), "library_dir": study.library_dir, "models_dir": study.models_dir}
+    (:meth:`GlobalStudy.summary`), β, and the contents of what the samplers draw on — the SHA-256 of the
+    library's manifest (a library that grew between the runs gives other pools) and of every file in the models
+    folder."""
+    from amorgs.data.library import MANIFEST, sha256_file
+
+    manifest = Path(study.library_dir) / "cr3bp" / MANIFEST
+    models = sorted(p for p in Path(study.models_dir).iterdir() if p.is_file()) if study.models_dir else []
+    return {**study.summary(), "min_final_mass_kg": study.min_final_mass_kg, "library_dir": study.library_dir,
+            "library_manifest_sha256": sha256_file(manifest) if manifest.is_file() else None,
+            "models_dir": study.models_dir, "models_sha256": {p.name: sha256_file(p) for p in models}}
 
 
 def _search_file(folder: Path, cell: Cell, r: int) -> Path:
@@ -190,9 +198,12 @@ def _open_checkpoint(folder: Path, study: GlobalStudy) -> None:
     want = json.loads(json.dumps(_identity(study)))
     if marker.is_file():
         if json.loads(marker.read_text()) != want:
-            raise InputError(f"{folder}: holds the searches of a study with other settings (its study.json); delete "
-                             "it or choose another --dest")
+            raise InputError(f"{folder}: holds the searches of a study with other settings, library or models (its "
+                             "study.json); delete it or choose another --dest")
         return
+    if any(folder.glob("*--*.json")):
+        raise InputError(f"{folder}: holds searches but no study.json saying which study they belong to; delete it "
+                         "or choose another --dest")
     with atomic_path(marker) as tmp:
         tmp.write_text(json.dumps(want, indent=1, sort_keys=True) + "\n")
 
@@ -201,7 +212,14 @@ def _save_search(path: Path, result: tuple[list[dict], list[dict]]) -> None:
     from amorgs.data.io import atomic_path
 
     with atomic_path(path) as tmp:  # JSON keeps every float bit for bit (repr), NaN included
-        tmp.write_text(json.dumps({"events": result[0], "solutions": result[1]}))
+        tmp.write_text(json.dumps({"events": result[0], "solutions": result[1]}, default=_plain))
+
+
+def _plain(value):
+    """A numpy scalar as the Python number or bool it holds (for JSON)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"{type(value).__name__} is not JSON data")
 
 
 def _load_search(path: Path) -> tuple[list[dict], list[dict]]:
@@ -259,8 +277,15 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
         with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker,
                                  initargs=(study, hq, train)) as pool:
             futures = {pool.submit(_search_task, tasks[i]): i for i in pending}
-            for future in as_completed(futures):
-                finished(futures[future], future.result())
+            try:
+                for future in as_completed(futures):
+                    finished(futures[future], future.result())
+            except BaseException:  # a search raised (or Ctrl-C): keep what finished, start nothing more
+                pool.shutdown(wait=False, cancel_futures=True)
+                for future, i in futures.items():
+                    if i not in results and future.done() and not future.cancelled() and future.exception() is None:
+                        finished(i, future.result())
+                raise
     ordered = [results[i] for i in range(len(tasks))]
     events = pd.DataFrame([e for ev, _ in ordered for e in ev])
     solutions = pd.DataFrame([s for _, so in ordered for s in so])

@@ -182,6 +182,7 @@ class SelectorSampler:
         self.by_alpha = training_rows(high_quality, train_alphas, problem.variable_names)
         self.selector, self.eta = selector, float(eta)
         self._candidates: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._ranked: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     @classmethod
     def build(cls, problem, inputs) -> SelectorSampler:
@@ -201,10 +202,13 @@ class SelectorSampler:
         return self._candidates[key]
 
     def ranked(self, alpha: float) -> tuple[np.ndarray, np.ndarray]:
-        """(candidates in selection order (m, 3N+4), their scores) at ``alpha``."""
-        x, scores, times = self.candidates(alpha)
-        order = selection_order(scores, times, self.eta)
-        return x[order], scores[order]
+        """(candidates in selection order (m, 3N+4), their scores) at ``alpha``; computed once per α."""
+        key = float(alpha)
+        if key not in self._ranked:
+            x, scores, times = self.candidates(key)
+            order = selection_order(scores, times, self.eta)
+            self._ranked[key] = (x[order], scores[order])
+        return self._ranked[key]
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         rows, _ = self.ranked(alpha)
@@ -222,6 +226,7 @@ class SampledSelectorSampler(SelectorSampler):
     order.  Scores below one iteration count as one."""
 
     name = "selector_sampled"
+    deterministic = False  # an order per rng
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         x, scores, times = self.candidates(alpha)
