@@ -358,12 +358,13 @@ def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBA
     if monotonic basin hopping from the request's sampler (its resolved arm, or ``uniform`` where the study has
     no cell of it) reached within :data:`STRATEGY_DELTA_KG` of the best known m_f in significantly fewer IPOPT
     iterations than multi-start from the same sampler (ERT ratio's bootstrap 95 % interval below 1, the study's
-    own budget, seed and target), ``multistart`` otherwise or without a study.  Any other strategy is kept."""
+    own budget, seed and target; or MBH got there and multi-start never did), ``multistart`` otherwise or without
+    a study.  Any other strategy is kept."""
     from dataclasses import replace
 
     if request.strategy != AUTO_STRATEGY:
         return request, f"strategy {request.strategy} (--strategy)"
-    from amorgs.ablation.global_search import ert_ratios
+    from amorgs.ablation.global_search import ert_ratios, hit_iterations
     from amorgs.data.io import read_json
 
     found = [d for d in sorted(Path(studies).glob("alpha=*"))
@@ -382,13 +383,31 @@ def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBA
         return (replace(request, strategy="multistart"),
                 f"strategy multistart (--strategy auto): {head} holds no multistart and mbh cells of {sampler}")
     best = -float(pd.read_csv(where / "best_known.csv")["m_f"].iloc[0])
+    # multi-start ÷ MBH, so that a multi-start that never got there (∞) still answers: MBH is significantly faster
+    # when this ratio's interval lies above 1; it is reported the other way round (MBH ÷ multi-start, the
+    # percentile interval's ends inverted, 1/∞ = 0)
     ratios = ert_ratios(events[events["sampler"] == sampler], best, deltas=(STRATEGY_DELTA_KG,),
-                        baseline=("multistart", sampler), seed=study["seed"], budget=study["budget"])
-    row = ratios[ratios["strategy"] == "mbh"].iloc[0]
-    faster = bool(row["ratio_hi"] < 1)
-    evidence = (f"{head}, MBH × {sampler} reached within {STRATEGY_DELTA_KG:g} kg of the best known m_f in "
-                f"{row['ratio']:.2f}× multi-start's iterations (95 % {row['ratio_lo']:.2f}–{row['ratio_hi']:.2f}, "
-                f"{study['searches']} searches of {study['budget']} each)")
+                        baseline=("mbh", sampler), seed=study["seed"], budget=study["budget"])
+    row = ratios[ratios["strategy"] == "multistart"].iloc[0]
+    counts = {strategy: int(np.isfinite(hit_iterations(cell, best + STRATEGY_DELTA_KG, study["budget"])).sum())
+              for strategy, cell in events[events["sampler"] == sampler].groupby("strategy")}
+    searches = f"{study['searches']} searches of {study['budget']} each"
+    if not counts["mbh"]:
+        evidence = (f"{head}, MBH × {sampler} never came within {STRATEGY_DELTA_KG:g} kg of the best known m_f "
+                    f"({searches}; multi-start from it in {counts['multistart']})")
+        faster = False
+    elif not counts["multistart"]:
+        evidence = (f"{head}, MBH × {sampler} came within {STRATEGY_DELTA_KG:g} kg of the best known m_f in "
+                    f"{counts['mbh']} of {study['searches']} searches of {study['budget']} iterations, multi-start "
+                    "from the same sampler in none")
+        faster = True
+    else:
+        inverse = [0.0 if v == math.inf else math.inf if v == 0 else 1 / v
+                   for v in (row["ratio"], row["ratio_hi"], row["ratio_lo"])]
+        evidence = (f"{head}, MBH × {sampler} reached within {STRATEGY_DELTA_KG:g} kg of the best known m_f in "
+                    f"{inverse[0]:.2f}× multi-start's iterations (95 % {inverse[1]:.2f}–{inverse[2]:.2f}, {searches}; "
+                    f"{counts['mbh']} against {counts['multistart']} searches got there)")
+        faster = bool(row["ratio_lo"] > 1)
     if faster:
         return replace(request, strategy="mbh"), f"strategy mbh (--strategy auto): {evidence}"
     return (replace(request, strategy="multistart"),

@@ -1,0 +1,57 @@
+"""Which strategy × sampler reaches the funnel bottom fastest, at each committed global-search study (issue 41).
+
+For every ``reference/global-search/alpha=*/`` and each δ of its study: the cell with the lowest ERT (IPOPT
+iterations to come within δ kg of the study's best known m_f) and every cell's ERT ÷ that fastest cell's, with the
+study's percentile bootstrap over searches (each cell resampled on its own, the study's seed and budget).  A cell
+whose interval's lower end is at most 1 is *not significantly slower* than the fastest: the fastest cell is
+significantly the fastest only where it is alone in that list.  Reproduce with::
+
+    python benchmarks/global_search_fastest.py
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pandas as pd
+
+from amorgs.ablation.global_search import ert_ratios
+
+STUDIES = Path("reference/global-search")
+
+
+def fastest(folder: Path) -> list[dict]:
+    """Per δ: the fastest cell, its ERT with interval and successes, and the cells not significantly slower."""
+    study = json.loads((folder / "study.json").read_text())
+    events = pd.read_parquet(folder / "events.parquet")
+    best = float(pd.read_csv(folder / "best_known.csv")["objective"].iloc[0])
+    table = pd.read_csv(folder / "runtime_to_target.csv")
+    rows = []
+    for delta in study["deltas"]:
+        here = table[(table["delta"] == delta) & table["ert"].map(math.isfinite)]
+        if here.empty:
+            continue
+        top = here.sort_values("ert").iloc[0]
+        ratios = ert_ratios(events, best, deltas=(delta,), baseline=(top["strategy"], top["sampler"]),
+                            seed=study["seed"], budget=study["budget"])
+        level = ratios[(ratios["ratio_lo"] <= 1) & ~((ratios["strategy"] == top["strategy"]) &
+                                                      (ratios["sampler"] == top["sampler"]))]
+        rows.append({"alpha": f"{study['alpha']:g}", "delta_kg": f"{delta:g}",
+                     "fastest": f"{top['strategy']} × {top['sampler']}",
+                     "ERT (95 %)": f"{top['ert']:.0f} ({top['ert_lo']:.0f}–{top['ert_hi']:.0f})",
+                     "successes": f"{int(top['successes'])}/{int(top['searches'])}",
+                     "not_significantly_slower": "; ".join(
+                         f"{r.strategy} × {r.sampler} {r.ratio:.2f} ({r.ratio_lo:.2f}–{r.ratio_hi:.2f})"
+                         for r in level.itertuples()) or "none"})
+    return rows
+
+
+def main() -> None:
+    rows = [row for folder in sorted(STUDIES.glob("alpha=*")) for row in fastest(folder)]
+    print(pd.DataFrame(rows).to_markdown(index=False))
+
+
+if __name__ == "__main__":
+    main()
