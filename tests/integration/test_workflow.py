@@ -523,7 +523,9 @@ def test_ctrl_c_ends_the_workflow_and_job_runs_killed(tmp_path):
         assert time.monotonic() < deadline, "no job run appeared"
         time.sleep(0.5)
     os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in a terminal: Snakemake and its jobs
-    assert proc.wait(timeout=120) != 0
+    # it ends in ≈ 20 s on an idle machine; a clean-clone CI beside the SLURM tests once needed > 120 s (every
+    # workflow test ran 1.5–1.7× slower then), so the bound is generous: it catches a hang, not a slow shutdown
+    assert proc.wait(timeout=300) != 0
     runs = _runs(wd, cfg["mlflow"]["experiment"])
     assert [r.info.status for r in runs["workflow"]] == ["KILLED"]
     assert [r.info.status for r in runs["job"]] == ["KILLED"]
