@@ -109,18 +109,19 @@ def kill_worker(proc) -> None:
 
 @contextmanager
 def _sigint_ignored() -> Iterator[None]:
-    """Ignore SIGINT while a worker starts, so that it starts with SIGINT ignored (an ignored signal stays
-    ignored across exec, and Python keeps it so): until :func:`detach_worker` takes it out of the terminal's
-    process group, a Ctrl-C would otherwise reach the worker too and print its own traceback."""
+    """Hold SIGINT back while a worker starts: it is blocked (not ignored) in this thread, so the worker starts with
+    it blocked (a blocked signal stays blocked across fork and exec) and a Ctrl-C cannot reach the worker before
+    :func:`detach_worker` takes it out of the terminal's process group — while a Ctrl-C that arrives here in that
+    window stays pending and is delivered the moment the block is lifted (while ignored, it was lost)."""
     try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread: signals are not ours to change
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    except (ValueError, OSError):  # signals are not ours to change here
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _own_cpu_s() -> float:
