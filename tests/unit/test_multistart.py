@@ -151,3 +151,44 @@ def test_a_worker_dies_with_its_pool(tmp_path):
     assert _gone(worker), "the worker outlived its pool"
     with contextlib.suppress(ProcessLookupError):  # the worker's own child is orphaned, not killed: tidy up
         os.kill(child, signal.SIGKILL)
+
+
+_CTRL_C_WHILE_A_WORKER_STARTS = '''
+import multiprocessing as mp, os, signal, sys, time
+from amorgs.solvers.multistart import _sigint_held
+
+
+def survive_a_ctrl_c(path):
+    os.kill(os.getpid(), signal.SIGINT)  # the terminal's Ctrl-C reaches the starting worker too
+    time.sleep(0.5)
+    with open(path, "w") as f:
+        f.write("alive")
+
+
+if __name__ == "__main__":
+    worker = mp.get_context("spawn").Process(target=survive_a_ctrl_c, args=(sys.argv[1],))
+    try:
+        with _sigint_held():
+            worker.start()
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C while the worker starts
+            time.sleep(0.2)
+        print("not interrupted")
+    except KeyboardInterrupt:
+        print("interrupted")
+    worker.join(60)
+    print(worker.exitcode)
+'''
+
+
+def test_a_ctrl_c_while_a_worker_starts_stops_the_caller_and_not_the_worker(tmp_path):
+    """While a worker starts (before it leaves the terminal's process group), a Ctrl-C is the caller's: the
+    caller gets its KeyboardInterrupt (ignoring SIGINT during the start lost it: a job ran on after Snakemake's
+    Ctrl-C), and the worker, which the same Ctrl-C reaches, runs on (blocking SIGINT alone did not keep it from
+    the worker: the resource tracker's start unblocked it, and the worker printed a KeyboardInterrupt)."""
+    script, mark = tmp_path / "ctrl_c.py", tmp_path / "worker-alive"
+    script.write_text(_CTRL_C_WHILE_A_WORKER_STARTS)
+    run = subprocess.run([sys.executable, str(script), str(mark)], capture_output=True, text=True, timeout=120,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.default_int_handler))
+    assert run.stdout.split() == ["interrupted", "0"], run.stdout + run.stderr
+    assert mark.read_text() == "alive"
+    assert "KeyboardInterrupt" not in run.stderr, run.stderr

@@ -23,7 +23,8 @@ Every worker leads its own process group, and the pool kills the whole group: a 
 builds its solver (:mod:`amorgs.solvers.codegen`) takes the compiler with it instead of leaving it running
 under init.  On Linux a worker also dies with the process that started it (``PR_SET_PDEATHSIG``), so a
 pool killed outright (``kill -9``, Snakemake killing a job's process group) leaves no worker behind.  Workers
-start with SIGINT ignored: a Ctrl-C is the caller's (it stops the pool, which kills them).
+start, and stay, with SIGINT blocked: a Ctrl-C is the caller's (it stops the pool, which kills them), and
+one that arrives while a worker starts still reaches the caller.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
+from multiprocessing import resource_tracker
 from multiprocessing.connection import wait
 
 import numpy as np
@@ -108,16 +110,17 @@ def kill_worker(proc) -> None:
 
 
 @contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """Hold SIGINT back while a worker starts: it is blocked (not ignored) in this thread, so the worker starts with
-    it blocked (a blocked signal stays blocked across fork and exec) and a Ctrl-C cannot reach the worker before
-    :func:`detach_worker` takes it out of the terminal's process group — while a Ctrl-C that arrives here in that
-    window stays pending and is delivered the moment the block is lifted (while ignored, it was lost)."""
-    try:
-        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    except (ValueError, OSError):  # signals are not ours to change here
-        yield
-        return
+def _sigint_held() -> Iterator[None]:
+    """Keep a Ctrl-C from the worker that starts in this block, without taking it from the caller.
+
+    SIGINT is blocked in this thread while the worker starts, and a blocked signal stays blocked across fork and
+    exec: the worker starts, and stays, out of reach of the terminal's Ctrl-C (it leaves the terminal's process
+    group in :func:`detach_worker`; the pool, not a signal, ends it).  The caller loses nothing: a Ctrl-C goes to
+    another of its threads, or waits until the block lifts (ignoring SIGINT instead, process-wide, lost it).
+    The resource tracker is started first because its start *unblocks* SIGINT in the calling thread
+    (CPython 3.11's ``resource_tracker.ensure_running``), which would otherwise let the worker start with it."""
+    resource_tracker.ensure_running()
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
@@ -164,7 +167,7 @@ class _Slot:
     def __init__(self, ctx, problem, options: OptionsLike, alpha: float | None = None):
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_worker, args=(child, problem, options, alpha), daemon=True)
-        with _sigint_ignored():  # Ctrl-C is the caller's to handle: a starting worker never sees it
+        with _sigint_held():  # Ctrl-C is the caller's to handle: a starting worker never sees it
             self.proc.start()
         child.close()
         self.ready = False
