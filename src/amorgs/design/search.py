@@ -391,15 +391,14 @@ def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBA
     row = ratios[ratios["strategy"] == "multistart"].iloc[0]
     counts = {strategy: int(np.isfinite(hit_iterations(cell, best + STRATEGY_DELTA_KG, study["budget"])).sum())
               for strategy, cell in events[events["sampler"] == sampler].groupby("strategy")}
-    searches = f"{study['searches']} searches of {study['budget']} each"
+    searches = f"{study['searches']} searches of {study['budget']} IPOPT iterations"
     if not counts["mbh"]:
         evidence = (f"{head}, MBH × {sampler} never came within {STRATEGY_DELTA_KG:g} kg of the best known m_f "
                     f"({searches}; multi-start from it in {counts['multistart']})")
         faster = False
     elif not counts["multistart"]:
         evidence = (f"{head}, MBH × {sampler} came within {STRATEGY_DELTA_KG:g} kg of the best known m_f in "
-                    f"{counts['mbh']} of {study['searches']} searches of {study['budget']} iterations, multi-start "
-                    "from the same sampler in none")
+                    f"{counts['mbh']} of {searches}, multi-start from the same sampler in none")
         faster = True
     else:
         inverse = [0.0 if v == math.inf else math.inf if v == 0 else 1 / v
