@@ -67,6 +67,7 @@ def test_every_arm_builds_a_valid_sampler_from_what_it_declares(arm, problem, ti
     for row in x:
         problem.check_guess(row)
     np.testing.assert_array_equal(x, sampler.sample(0.55, 12, np.random.default_rng(0)))  # seeded
+    assert np.array_equal(x, sampler.sample(0.55, 12, np.random.default_rng(1))) == arm.rng_free  # as declared
 
 
 @pytest.mark.parametrize("arm", A.ARMS, ids=lambda arm: arm.name)

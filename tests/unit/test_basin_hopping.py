@@ -362,3 +362,32 @@ def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tabl
     (folder / "study.json").unlink()
     with pytest.raises(InputError, match=r"holds searches but no study\.json"):
         run_study(study, checkpoint=folder, report=lines.append)
+
+
+def test_a_multistart_from_the_selector_is_solved_once_for_every_seed(tmp_path, tiny_models_dir):
+    """The selector's guesses are its ranking whatever the seed, and a multi-start never hops: every search is
+    search 0, so the study solves it once, says so, and its tables equal the searches solved one by one."""
+    from amorgs.ablation.global_search import run_search
+    from amorgs.ablation.global_study import GlobalStudy, _init_worker, _WORKER, run_study, training_high_quality
+    from amorgs.solvers.options import IpoptOptions
+
+    study = GlobalStudy(alpha=1.0, samplers=("selector",), strategies=("multistart",), searches=3, budget=200,
+                        deltas=(50.0,), solver=IpoptOptions(max_iter=100), models_dir=str(tiny_models_dir))
+    lines: list[str] = []
+    tables = run_study(study, checkpoint=tmp_path / ".searches", report=lines.append)
+    assert lines[0].startswith("global-search: multistart × selector starts every search from the same guesses")
+    assert len(lines) == 2 and lines[1].startswith("global-search: 1/1 searches")
+    assert sorted(p.name for p in (tmp_path / ".searches").glob("*--*.json")) == ["multistart--selector--0000.json"]
+    events = tables["events"]
+    assert sorted(events["search"].unique()) == [0, 1, 2]
+    (cell,) = study.cells()
+    _init_worker(study, *training_high_quality(study))
+    try:
+        p = _WORKER["problem"]
+        for r in (1, 2):  # solved, not copied: the same rows
+            solved, _ = run_search(cell, r, _WORKER["samplers"]["selector"].sample, _WORKER["solver"], p.lower,
+                                   p.upper, p.variable_names)
+            pd.testing.assert_frame_equal(events[events["search"] == r].reset_index(drop=True), pd.DataFrame(solved),
+                                          check_exact=True)
+    finally:
+        _WORKER.clear()

@@ -54,6 +54,8 @@ class Arm:
     transfer: it loads the transfer selector trained on the run's transfer data (``transfer.enabled``;
         :mod:`amorgs.models.selector`, :data:`amorgs.layout.SELECTOR_MODEL`), as ``inputs.models["selector"]``.
     role: its role in the statistics, a key of :data:`ROLES`.   paper: one of the paper's five (Table 6).
+    rng_free: its guesses are the same for every generator (one fixed order, e.g. a selector's ranking), so
+        searches that differ only in their seed start from the same guesses.
     """
 
     name: str
@@ -65,6 +67,7 @@ class Arm:
     transfer: bool = False
     role: str = "compared"
     paper: bool = False
+    rng_free: bool = False
 
     @property
     def learned(self) -> bool:
@@ -104,7 +107,7 @@ ARMS: tuple[Arm, ...] = (
         "amorgs.models.reuse_cvae:ReuseCVAESampler.build", models=("reuse_cvae",), high_quality=True, pooled=True),
     # issue 38 §2: every training α's solutions, in the order a selector trained on transfer data ranks them
     Arm("selector", "Known solutions ranked by a learned transfer selector", "amorgs.models.selector:SelectorSampler.build",
-        high_quality=True, pooled=True, transfer=True),
+        high_quality=True, pooled=True, transfer=True, rng_free=True),
     # issue 41: the same candidates in a random order weighted by the selector (independent global searches)
     Arm("selector_sampled", "Known solutions drawn in proportion to the transfer selector's predicted rate",
         "amorgs.models.selector:SampledSelectorSampler.build", high_quality=True, pooled=True, transfer=True),

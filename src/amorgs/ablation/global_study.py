@@ -236,6 +236,21 @@ def _progress_line(done: int, total: int, resumed: int, task: tuple[Cell, int], 
             f"{elapsed / 60:.1f} min{left}")
 
 
+def _same_searches(tasks: list[tuple[Cell, int]]) -> dict[int, int]:
+    """The searches that need no solve: task index → the index of search 0 of its cell, for every search r > 0 of
+    a multi-start cell whose sampler does not use its generator (:attr:`~amorgs.ablation.arms.Arm.rng_free`) —
+    a multi-start never hops, so its generator draws nothing else and every search is search 0."""
+    first = {cell: i for i, (cell, r) in enumerate(tasks) if r == 0}
+    return {i: first[cell] for i, (cell, r) in enumerate(tasks)
+            if r and cell.strategy == "multistart" and get_arm(cell.sampler).rng_free}
+
+
+def _as_search(result: tuple[list[dict], list[dict]], r: int) -> tuple[list[dict], list[dict]]:
+    """A search's event rows and solutions relabelled as search ``r``."""
+    events, solutions = result
+    return [{**e, "search": r} for e in events], [{**s, "search": r} for s in solutions]
+
+
 def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | None = None,
               report: Callable[[str], None] | None = None) -> dict[str, pd.DataFrame]:
     """Run every search of every cell on ``workers`` spawned processes (each builds its own solver and samplers;
@@ -244,29 +259,35 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
     (:func:`~amorgs.ablation.global_search.paired_ratios`), ``distinct`` and ``best_known`` (one row: objective,
     m_f, source).  With ``checkpoint`` (a folder), each finished search is saved there at once and searches
     already saved by an interrupted run of the same study are not solved again (the same tables as an
-    uninterrupted run: every search is seeded on its own).  ``report`` receives a line per finished search
-    (default: standard error)."""
+    uninterrupted run: every search is seeded on its own).  A multi-start from a sampler that ignores the seed
+    (the selector's one ranking) is solved once, its search 0 copied to the others (:func:`_same_searches`: the
+    same tables as solving each).  ``report`` receives a line per finished search (default: standard error)."""
     study.check()
     say = report or (lambda line: print(line, file=sys.stderr, flush=True))
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # before the workers import numpy
         os.environ.setdefault(key, "1")
     tasks = [(cell, r) for cell in study.cells() for r in range(cell.searches)]
+    copies = _same_searches(tasks)
+    for cell in dict.fromkeys(tasks[i][0] for i in copies):
+        say(f"global-search: {cell.strategy} × {cell.sampler} starts every search from the same guesses (the "
+            f"sampler does not use the seed): search 0 is solved once and stands for all {cell.searches}")
     folder = Path(checkpoint) if checkpoint is not None else None
     results: dict[int, tuple[list[dict], list[dict]]] = {}
+    total = len(tasks) - len(copies)
     if folder is not None:
         _open_checkpoint(folder, study)
         results = {i: _load_search(_search_file(folder, *t)) for i, t in enumerate(tasks)
-                   if _search_file(folder, *t).is_file()}
+                   if i not in copies and _search_file(folder, *t).is_file()}
         if results:
-            say(f"global-search: {len(results)} of {len(tasks)} searches resumed from {folder}")
-    pending = [i for i in range(len(tasks)) if i not in results]
+            say(f"global-search: {len(results)} of {total} searches resumed from {folder}")
+    pending = [i for i in range(len(tasks)) if i not in results and i not in copies]
     started, resumed = time.monotonic(), len(results)
 
     def finished(i: int, result: tuple[list[dict], list[dict]]) -> None:
         if folder is not None:
             _save_search(_search_file(folder, *tasks[i]), result)
         results[i] = result
-        say(_progress_line(len(results), len(tasks), resumed, tasks[i], started))
+        say(_progress_line(len(results), total, resumed, tasks[i], started))
 
     hq, train = training_high_quality(study)
     if workers <= 1 and pending:
@@ -286,6 +307,8 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
                     if i not in results and future.done() and not future.cancelled() and future.exception() is None:
                         finished(i, future.result())
                 raise
+    for i, j in copies.items():
+        results[i] = _as_search(results[j], tasks[i][1])
     ordered = [results[i] for i in range(len(tasks))]
     events = pd.DataFrame([e for ev, _ in ordered for e in ev])
     solutions = pd.DataFrame([s for _, so in ordered for s in so])

@@ -172,7 +172,6 @@ class SelectorSampler:
     is not used: the order is the selector's (the cells of every model seed are slices of it, like reuse's)."""
 
     name = "selector"
-    deterministic = True  # the same guesses for every rng: the order is the selector's
 
     def __init__(self, problem, high_quality: pd.DataFrame, train_alphas, selector: TransferSelector,
                  eta: float = ETA):
@@ -226,7 +225,6 @@ class SampledSelectorSampler(SelectorSampler):
     order.  Scores below one iteration count as one."""
 
     name = "selector_sampled"
-    deterministic = False  # an order per rng
 
     def sample(self, alpha: float, n: int, rng: np.random.Generator) -> np.ndarray:
         x, scores, times = self.candidates(alpha)
