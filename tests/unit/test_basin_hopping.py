@@ -366,8 +366,9 @@ def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tabl
 
 def test_a_multistart_from_the_selector_is_solved_once_for_every_seed(tmp_path, tiny_models_dir):
     """The selector's guesses are its ranking whatever the seed, and a multi-start never hops: every search is
-    search 0, so the study solves it once, says so, and its tables equal the searches solved one by one."""
-    from amorgs.ablation.global_search import run_search
+    search 0, so the study (and the workflow's cell) solves it once, says so, and its tables equal the searches
+    solved one by one."""
+    from amorgs.ablation.global_search import run_cell, run_search
     from amorgs.ablation.global_study import GlobalStudy, _init_worker, _WORKER, run_study, training_high_quality
     from amorgs.solvers.options import IpoptOptions
 
@@ -389,5 +390,8 @@ def test_a_multistart_from_the_selector_is_solved_once_for_every_seed(tmp_path, 
                                    p.upper, p.variable_names)
             pd.testing.assert_frame_equal(events[events["search"] == r].reset_index(drop=True), pd.DataFrame(solved),
                                           check_exact=True)
+        alone, _ = run_cell(cell, _WORKER["samplers"]["selector"].sample, _WORKER["solver"], p.lower, p.upper,
+                            p.variable_names)  # the workflow's cell: the same shortcut, the same table
+        pd.testing.assert_frame_equal(alone, events, check_exact=True)
     finally:
         _WORKER.clear()

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from amorgs.ablation.arms import REUSE_ARM
+from amorgs.ablation.arms import REUSE_ARM, get_arm
 from amorgs.analysis.diversity import DiversityParams, diverse_subset
 from amorgs.solvers.basin_hopping import STRATEGIES, HopSettings, search
 
@@ -55,6 +55,19 @@ class Cell:
     budget: int
     seed: int
     hops: HopSettings = HopSettings()
+
+
+def repeats_search_0(cell: Cell) -> bool:
+    """Whether every search of ``cell`` is its search 0: a multi-start (it never hops, so its generator draws
+    only the starts) from a sampler that does not use its generator (:attr:`~amorgs.ablation.arms.Arm.rng_free`,
+    the selector's one ranking).  Such a cell's searches are solved once and relabelled (:func:`as_search`)."""
+    return cell.strategy == "multistart" and get_arm(cell.sampler).rng_free
+
+
+def as_search(result: tuple[list[dict], list[dict]], r: int) -> tuple[list[dict], list[dict]]:
+    """A search's event rows and solutions (:func:`run_search`'s result) relabelled as search ``r``."""
+    events, solutions = result
+    return [{**e, "search": r} for e in events], [{**s, "search": r} for s in solutions]
 
 
 #: Starts drawn per call of a search's sampler: a pooled arm (reuse) permutes its pool afresh at every call, so a
@@ -111,10 +124,15 @@ def run_search(cell: Cell, r: int, sample, solver, lower: np.ndarray, upper: np.
 
 def run_cell(cell: Cell, sample, solver, lower: np.ndarray, upper: np.ndarray,
              variable_names: tuple[str, ...], hop_solver=None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Every search of ``cell`` in this process (:func:`run_search`), as two tables: events and solutions."""
+    """Every search of ``cell`` in this process (:func:`run_search`; a cell that :func:`repeats_search_0` solves
+    search 0 only), as two tables: events and solutions."""
     events, solutions = [], []
+    first = None
     for r in range(cell.searches):
-        e, s = run_search(cell, r, sample, solver, lower, upper, variable_names, hop_solver)
+        if first is not None and repeats_search_0(cell):
+            e, s = as_search(first, r)
+        else:
+            e, s = first = run_search(cell, r, sample, solver, lower, upper, variable_names, hop_solver)
         events += e
         solutions += s
     return pd.DataFrame(events), pd.DataFrame(solutions)

@@ -26,10 +26,12 @@ from amorgs.ablation.arms import build_sampler, get_arm
 from amorgs.ablation.global_search import (
     DELTAS,
     Cell,
+    as_search,
     best_known,
     distinct_near_best,
     ert_ratios,
     paired_ratios,
+    repeats_search_0,
     run_search,
     runtime_ecdf,
     runtime_to_target,
@@ -238,17 +240,9 @@ def _progress_line(done: int, total: int, resumed: int, task: tuple[Cell, int], 
 
 def _same_searches(tasks: list[tuple[Cell, int]]) -> dict[int, int]:
     """The searches that need no solve: task index → the index of search 0 of its cell, for every search r > 0 of
-    a multi-start cell whose sampler does not use its generator (:attr:`~amorgs.ablation.arms.Arm.rng_free`) —
-    a multi-start never hops, so its generator draws nothing else and every search is search 0."""
+    a cell that :func:`~amorgs.ablation.global_search.repeats_search_0`."""
     first = {cell: i for i, (cell, r) in enumerate(tasks) if r == 0}
-    return {i: first[cell] for i, (cell, r) in enumerate(tasks)
-            if r and cell.strategy == "multistart" and get_arm(cell.sampler).rng_free}
-
-
-def _as_search(result: tuple[list[dict], list[dict]], r: int) -> tuple[list[dict], list[dict]]:
-    """A search's event rows and solutions relabelled as search ``r``."""
-    events, solutions = result
-    return [{**e, "search": r} for e in events], [{**s, "search": r} for s in solutions]
+    return {i: first[cell] for i, (cell, r) in enumerate(tasks) if r and repeats_search_0(cell)}
 
 
 def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | None = None,
@@ -308,7 +302,7 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
                         finished(i, future.result())
                 raise
     for i, j in copies.items():
-        results[i] = _as_search(results[j], tasks[i][1])
+        results[i] = as_search(results[j], tasks[i][1])
     ordered = [results[i] for i in range(len(tasks))]
     events = pd.DataFrame([e for ev, _ in ordered for e in ev])
     solutions = pd.DataFrame([s for _, so in ordered for s in so])
