@@ -372,26 +372,31 @@ def test_a_multistart_from_the_selector_is_solved_once_for_every_seed(tmp_path, 
     from amorgs.ablation.global_study import GlobalStudy, _init_worker, _WORKER, run_study, training_high_quality
     from amorgs.solvers.options import IpoptOptions
 
-    study = GlobalStudy(alpha=1.0, samplers=("selector",), strategies=("multistart",), searches=3, budget=200,
-                        deltas=(50.0,), solver=IpoptOptions(max_iter=100), models_dir=str(tiny_models_dir))
+    study = GlobalStudy(alpha=1.0, samplers=("selector",), strategies=("multistart", "mbh"), searches=3, budget=600,
+                        hops=HopSettings(scale=0.005, patience=1), deltas=(50.0,), solver=IpoptOptions(max_iter=300),
+                        models_dir=str(tiny_models_dir))
     lines: list[str] = []
     tables = run_study(study, checkpoint=tmp_path / ".searches", report=lines.append)
     assert lines[0].startswith("global-search: multistart × selector starts every search from the same guesses")
-    assert len(lines) == 2 and lines[1].startswith("global-search: 1/1 searches")
-    assert sorted(p.name for p in (tmp_path / ".searches").glob("*--*.json")) == ["multistart--selector--0000.json"]
-    events = tables["events"]
-    assert sorted(events["search"].unique()) == [0, 1, 2]
-    (cell,) = study.cells()
+    assert len(lines) == 5 and lines[-1].startswith("global-search: 4/4 searches")  # hopping draws its hops: 3
+    assert sorted(p.name for p in (tmp_path / ".searches").glob("*--*.json")) == [
+        "mbh--selector--0000.json", "mbh--selector--0001.json", "mbh--selector--0002.json",
+        "multistart--selector--0000.json"]
+    multistart, mbh = study.cells()
+    events, solutions = (tables[k][tables[k]["strategy"] == "multistart"].reset_index(drop=True)
+                         for k in ("events", "solutions"))
+    assert sorted(events["search"].unique()) == sorted(solutions["search"].unique()) == [0, 1, 2]
     _init_worker(study, *training_high_quality(study))
     try:
-        p = _WORKER["problem"]
+        p, sample = _WORKER["problem"], _WORKER["samplers"]["selector"].sample
         for r in (1, 2):  # solved, not copied: the same rows
-            solved, _ = run_search(cell, r, _WORKER["samplers"]["selector"].sample, _WORKER["solver"], p.lower,
-                                   p.upper, p.variable_names)
-            pd.testing.assert_frame_equal(events[events["search"] == r].reset_index(drop=True), pd.DataFrame(solved),
-                                          check_exact=True)
-        alone, _ = run_cell(cell, _WORKER["samplers"]["selector"].sample, _WORKER["solver"], p.lower, p.upper,
-                            p.variable_names)  # the workflow's cell: the same shortcut, the same table
-        pd.testing.assert_frame_equal(alone, events, check_exact=True)
+            solved = [pd.DataFrame(t) for t in run_search(multistart, r, sample, _WORKER["solver"], p.lower, p.upper,
+                                                          p.variable_names)]
+            for table, alone in zip((events, solutions), solved):
+                pd.testing.assert_frame_equal(table[table["search"] == r].reset_index(drop=True), alone,
+                                              check_exact=True)
+        alone = run_cell(multistart, sample, _WORKER["solver"], p.lower, p.upper, p.variable_names)
+        for table, cell_table in zip((events, solutions), alone):  # the workflow's cell: the same shortcut
+            pd.testing.assert_frame_equal(cell_table, table, check_exact=True)
     finally:
         _WORKER.clear()

@@ -153,6 +153,12 @@ def test_a_worker_dies_with_its_pool(tmp_path):
         os.kill(child, signal.SIGKILL)
 
 
+def _as_in_a_terminal() -> None:
+    """A child's SIGINT as a terminal's shell leaves it: Python's handler, not blocked."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 _CTRL_C_WHILE_A_WORKER_STARTS = '''
 import multiprocessing as mp, os, signal, sys, time
 from amorgs.solvers.multistart import _sigint_held
@@ -188,7 +194,46 @@ def test_a_ctrl_c_while_a_worker_starts_stops_the_caller_and_not_the_worker(tmp_
     script, mark = tmp_path / "ctrl_c.py", tmp_path / "worker-alive"
     script.write_text(_CTRL_C_WHILE_A_WORKER_STARTS)
     run = subprocess.run([sys.executable, str(script), str(mark)], capture_output=True, text=True, timeout=120,
-                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.default_int_handler))
+                         preexec_fn=_as_in_a_terminal)
     assert run.stdout.split() == ["interrupted", "0"], run.stdout + run.stderr
     assert mark.read_text() == "alive"
     assert "KeyboardInterrupt" not in run.stderr, run.stderr
+
+
+_CTRL_C_AS_THE_POOL_STARTS_A_WORKER = '''
+import os, signal, sys, time
+from multiprocessing.context import SpawnProcess
+sys.path.insert(0, sys.argv[1])  # crashy_problem
+from amorgs.problems import get_problem
+from amorgs.solvers.multistart import WorkerPool
+
+started = []
+real_start = SpawnProcess.start
+
+
+def start_then_ctrl_c(self):
+    real_start(self)
+    started.append(self.pid)
+    os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C the moment the worker has started
+
+
+if __name__ == "__main__":
+    SpawnProcess.start = start_then_ctrl_c
+    try:
+        WorkerPool(get_problem("crashy_problem:CrashyProblem"), 2)
+        print("not interrupted")
+    except KeyboardInterrupt:
+        print("interrupted")
+    print(len(started), sum(os.path.exists(f"/proc/{pid}") for pid in started))
+'''
+
+
+def test_a_ctrl_c_as_the_pool_starts_a_worker_leaves_no_worker_behind(tmp_path):
+    """The Ctrl-C held during a worker's start arrives before the pool has recorded that worker: the slot kills
+    it itself, so nothing the pool started outlives the interrupt (no second worker is started either)."""
+    script = tmp_path / "ctrl_c_pool.py"
+    script.write_text(_CTRL_C_AS_THE_POOL_STARTS_A_WORKER)
+    run = subprocess.run([sys.executable, str(script), str(Path(__file__).parent)], capture_output=True, text=True,
+                         timeout=120, preexec_fn=_as_in_a_terminal)
+    assert run.stdout.split() == ["interrupted", "1", "0"], run.stdout + run.stderr
+    assert "Traceback" not in run.stderr, run.stderr

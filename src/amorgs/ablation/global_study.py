@@ -262,9 +262,6 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
         os.environ.setdefault(key, "1")
     tasks = [(cell, r) for cell in study.cells() for r in range(cell.searches)]
     copies = _same_searches(tasks)
-    for cell in dict.fromkeys(tasks[i][0] for i in copies):
-        say(f"global-search: {cell.strategy} × {cell.sampler} starts every search from the same guesses (the "
-            f"sampler does not use the seed): search 0 is solved once and stands for all {cell.searches}")
     folder = Path(checkpoint) if checkpoint is not None else None
     results: dict[int, tuple[list[dict], list[dict]]] = {}
     total = len(tasks) - len(copies)
@@ -284,6 +281,9 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
         say(_progress_line(len(results), total, resumed, tasks[i], started))
 
     hq, train = training_high_quality(study)
+    for cell in dict.fromkeys(tasks[i][0] for i in copies):
+        say(f"global-search: {cell.strategy} × {cell.sampler} starts every search from the same guesses (the "
+            f"sampler does not use the seed): search 0 is solved once and stands for all {cell.searches}")
     if workers <= 1 and pending:
         _init_worker(study, hq, train)
         for i in pending:

@@ -391,7 +391,7 @@ def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBA
     row = ratios[ratios["strategy"] == "multistart"].iloc[0]
     counts = {strategy: int(np.isfinite(hit_iterations(cell, best + STRATEGY_DELTA_KG, study["budget"])).sum())
               for strategy, cell in events[events["sampler"] == sampler].groupby("strategy")}
-    searches = f"{study['searches']} searches of {study['budget']} IPOPT iterations"
+    searches = f"{study['searches']} searches of {study['budget']} IPOPT iterations each"
     if not counts["mbh"]:
         evidence = (f"{head}, MBH × {sampler} never came within {STRATEGY_DELTA_KG:g} kg of the best known m_f "
                     f"({searches}; multi-start from it in {counts['multistart']})")

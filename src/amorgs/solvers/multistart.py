@@ -37,6 +37,7 @@ import multiprocessing as mp
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
@@ -111,20 +112,30 @@ def kill_worker(proc) -> None:
 
 @contextmanager
 def _sigint_held() -> Iterator[None]:
-    """Keep a Ctrl-C from the worker that starts in this block, without taking it from the caller.
+    """Keep a Ctrl-C from the worker that starts in this block, and hold it for the caller until the block ends.
 
     SIGINT is blocked in this thread while the worker starts, and a blocked signal stays blocked across fork and
     exec: the worker starts, and stays, out of reach of the terminal's Ctrl-C (it leaves the terminal's process
-    group in :func:`detach_worker`; the pool, not a signal, ends it).  The caller loses nothing: a Ctrl-C goes to
-    another of its threads, or waits until the block lifts (ignoring SIGINT instead, process-wide, lost it).
-    The resource tracker is started first because its start *unblocks* SIGINT in the calling thread
-    (CPython 3.11's ``resource_tracker.ensure_running``), which would otherwise let the worker start with it."""
+    group in :func:`detach_worker`; the pool, not a signal, ends it).  In the main thread a Ctrl-C that arrives
+    meanwhile (taken by another thread, or pending until the block lifts) is only noted, and raised again with
+    the caller's own handler when the block ends — never inside the start, where it could leave a started worker
+    unrecorded (ignoring SIGINT instead, process-wide, lost it).  The resource tracker is started first because
+    its start *unblocks* SIGINT in the calling thread (CPython 3.11's ``resource_tracker.ensure_running``),
+    which would otherwise let the worker start with it."""
     resource_tracker.ensure_running()
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    noted: list[int] = []
+    previous_handler = None
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is not None:
+        previous_handler = signal.signal(signal.SIGINT, lambda signum, frame: noted.append(signum))
+    previous_mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous_mask)
+        if previous_handler is not None:
+            signal.signal(signal.SIGINT, previous_handler)
+            if noted:
+                signal.raise_signal(signal.SIGINT)
 
 
 def _own_cpu_s() -> float:
@@ -167,9 +178,16 @@ class _Slot:
     def __init__(self, ctx, problem, options: OptionsLike, alpha: float | None = None):
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_worker, args=(child, problem, options, alpha), daemon=True)
-        with _sigint_held():  # Ctrl-C is the caller's to handle: a starting worker never sees it
-            self.proc.start()
-        child.close()
+        try:
+            with _sigint_held():  # Ctrl-C is the caller's to handle: a starting worker never sees it
+                self.proc.start()
+        except BaseException:  # the Ctrl-C held during the start: the caller's pool does not know this worker yet
+            if self.proc.pid is not None:
+                kill_worker(self.proc)
+            self.conn.close()
+            raise
+        finally:
+            child.close()
         self.ready = False
         self.task: int | None = None
         self.since = time.monotonic()
