@@ -356,10 +356,11 @@ class GlobalSearch(Section):
     """Global search at the CR3BP test α (issue 41): per (test α, strategy, sampler) one job running ``searches``
     seeded searches of ``budget`` IPOPT iterations each — multi-start, or monotonic basin hopping from the
     sampler's starts (hops of ``hop_distribution`` × ``hop_scale`` of each variable's box width, Pareto tail
-    ``hop_shape``; a restart after ``patience`` hops that do not improve m_f) — with the CR3BP solver options;
-    then the report: expected iterations to come within each of ``deltas_kg`` of the best known m_f, with
-    bootstrap intervals (``ablation.n_boot``), the runtime ECDF and the distinct near-best trajectories.  The
-    best known is the best verified m_f at that α of the run's searches and of the solution library."""
+    ``hop_shape``, of the ``hop_variables`` only where named; a restart after ``patience`` hops that do not
+    improve m_f) — with the CR3BP solver options; then the report: expected iterations to come within each of
+    ``deltas_kg`` of the best known m_f, with bootstrap intervals (``ablation.n_boot``), the runtime ECDF and the
+    distinct near-best trajectories.  The best known is the best verified m_f at that α of the run's searches and
+    of the solution library."""
 
     enabled: Flag = False
     samplers: Annotated[tuple[Literal[SAMPLER_NAMES], ...], Field(min_length=1)] = (  # type: ignore[valid-type]
@@ -375,11 +376,23 @@ class GlobalSearch(Section):
         HOPS.scale)
     hop_shape: Annotated[float, Field(gt=0, description="tail index of the Pareto hops")] = HOPS.shape
     patience: PositiveInt = HOPS.patience
+    hop_variables: Annotated[tuple[str, ...], Field(description=(
+        "the CR3BP's stored variables a hop moves (e.g. [tau_s, tau_i, tau_f]: the times); empty: every one"))] = (
+        HOPS.variables)
     seed: Seed = 23
     mem_mb: PositiveInt = 4000
     runtime_min: PositiveInt = 120
 
-    _unique_lists = field_validator("samplers", "strategies", "deltas_kg")(_unique)
+    _unique_lists = field_validator("samplers", "strategies", "deltas_kg", "hop_variables")(_unique)
+
+    @field_validator("hop_variables")
+    @classmethod
+    def _known_variables(cls, names: tuple[str, ...]) -> tuple[str, ...]:
+        if names:
+            from amorgs.problems.cr3bp.transcription import variable_names
+
+            HopSettings(variables=names).movable(variable_names())  # ValueError naming the unknown ones
+        return names
 
     def job(self) -> Job:
         """The resources of one cell job (its searches run one after another in one process): one thread,

@@ -151,6 +151,7 @@ def cmd_design(args: argparse.Namespace) -> None:
         library_dir=args.library_dir, models_dir=args.models_dir, config=args.config,
         frontier=tuple(args.frontier) if args.frontier else DEFAULT_FRONTIERS, strategy=args.strategy, hop=args.hop,
         hop_scale=args.hop_scale, hop_shape=args.hop_shape, patience=args.patience,
+        hop_variables=tuple(args.hop_variables),
     )
     result, paths = run_design(request, args.output, track=not args.no_mlflow, store_dir=args.mlflow_dir,
                                progress=not args.quiet)
@@ -236,7 +237,8 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     dest = Path(args.dest)
     check_writable_folder(dest, "--dest")
     try:
-        hops = HopSettings(distribution=args.hop, scale=args.hop_scale, shape=args.hop_shape, patience=args.patience)
+        hops = HopSettings(distribution=args.hop, scale=args.hop_scale, shape=args.hop_shape, patience=args.patience,
+                           variables=tuple(args.hop_variables))
     except ValueError as exc:
         raise InputError(f"--hop: {exc}") from None
     study = GlobalStudy(alpha=args.alpha, samplers=tuple(args.samplers), strategies=tuple(args.strategies),
@@ -525,6 +527,8 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--hop-scale", type=float, default=HOPS.scale, help="mbh: hop step per unit draw, fraction of the box")
     p.add_argument("--hop-shape", type=float, default=HOPS.shape, help="mbh: Pareto tail index")
     p.add_argument("--patience", type=int, default=HOPS.patience, help="mbh: hops without improvement before a restart")
+    p.add_argument("--hop-variables", nargs="+", default=list(HOPS.variables), metavar="NAME",
+                   help="mbh: the stored variables a hop moves, e.g. tau_s tau_i tau_f (the times); default: all")
     p.add_argument("--round-size", type=int, default=16,
                    help="starts solved per round; the stop criteria are checked between rounds (default 16)")
     p.add_argument("--max-starts", type=int, default=400, help="budget: at most this many solves (default 400)")
@@ -603,6 +607,8 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--hop-scale", type=float, default=HOPS.scale, help="hop step per unit draw, fraction of the box width")
     p.add_argument("--hop-shape", type=float, default=HOPS.shape, help="Pareto tail index")
     p.add_argument("--patience", type=int, default=HOPS.patience, help="hops without improvement before a restart")
+    p.add_argument("--hop-variables", nargs="+", default=list(HOPS.variables), metavar="NAME",
+                   help="the stored variables a hop moves, e.g. tau_s tau_i tau_f (the times); default: all")
     p.add_argument("--deltas", type=float, nargs="+", default=[0.1, 0.5, 2.0],
                    help="targets: within δ kg of the best known m_f (default 0.1 0.5 2)")
     p.add_argument("--seed", type=int, default=0, help="seed of the searches and the bootstrap")

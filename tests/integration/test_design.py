@@ -187,6 +187,7 @@ def test_basin_hopping_spends_its_budget_and_says_how_far_from_the_best_known(tm
         # issue 41: the basin-hopping strategy's settings
         (["--alpha", "0.42", "-n", "3", "--strategy", "mbh", "--hop", "levy"], "--hop/--hop-scale"),
         (["--alpha", "0.42", "-n", "3", "--strategy", "mbh", "--hop-scale", "0"], "--hop/--hop-scale"),
+        (["--alpha", "0.42", "-n", "3", "--strategy", "mbh", "--hop-variables", "tau_q"], "--hop-variables: hop vari"),
     ],
 )
 def test_bad_input_is_one_line_without_traceback(args, names, tmp_path):

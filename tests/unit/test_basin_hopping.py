@@ -57,6 +57,82 @@ def test_hop_settings_refuse_what_they_cannot_do():
     assert strategy_settings("mbh_warm", HopSettings(patience=7)).patience == 7
 
 
+def test_a_hop_of_named_variables_moves_those_alone_and_a_hop_of_all_draws_as_it_always_did():
+    """``HopSettings.variables`` picks what a hop moves (the CR3BP's times); without it a hop draws one step per
+    component from the generator, as the committed studies' hops were drawn (their certificates re-solve them)."""
+    names = ("tau_s", "tau_i", "tau_f", "m_f", "theta_01")
+    lower, upper = np.array([0.0, 0.0, 0.0, 0.0, 0.0]), np.array([40.0, 15.0, 15.0, 450.0, 6.3])
+    x = np.array([20.0, 7.0, 7.0, 420.0, 3.0])
+    times = HopSettings(scale=0.05, variables=("tau_s", "tau_i", "tau_f"))
+    movable = times.movable(names)
+    assert movable.tolist() == [True, True, True, False, False]
+    moved = np.array([hop(x, lower, upper, times, np.random.default_rng(s), movable) for s in range(200)])
+    assert np.all(moved[:, 3:] == x[3:]) and np.all(np.any(moved[:, :3] != x[:3], axis=1))
+    assert np.all(moved >= lower) and np.all(moved <= upper)
+    every = HopSettings(scale=0.05)
+    assert every.movable(names) is None and every.movable(None) is None
+    step = HOP_DISTRIBUTIONS["pareto"](np.random.default_rng(9), x.size, 1.5)
+    np.testing.assert_array_equal(hop(x, lower, upper, every, np.random.default_rng(9)),
+                                  np.clip(x + 0.05 * (upper - lower) * step, lower, upper))
+    with pytest.raises(ValueError, match="hop variables tau_q: not variables of the problem"):
+        HopSettings(variables=("tau_s", "tau_q")).movable(names)
+    with pytest.raises(ValueError, match="no variable names"):
+        times.movable(None)
+    with pytest.raises(ValueError, match="named twice"):
+        HopSettings(variables=("tau_s", "tau_s"))
+    assert HopSettings(variables=["tau_s"]) == HopSettings(variables=("tau_s",))  # as read back from JSON
+    from amorgs.solvers.basin_hopping import Chains  # the designer's chains hop the same way
+
+    chains = Chains(2, times, names)
+    chains.incumbents[0] = SolveRecord(status="x", converged=True, solver_success=True, x=x, objective=-420.0)
+    guesses, kinds = chains.propose(lambda m: np.tile(lower, (m, 1)), lower, upper, np.random.default_rng(1))
+    assert kinds == ["hop", "start"] and np.all(guesses[0][3:] == x[3:]) and np.any(guesses[0][:3] != x[:3])
+
+
+def test_a_study_says_which_variables_hop_only_where_not_all_do():
+    """study.json of a study that hops every variable reads as before hop variables existed (the committed
+    references' files); one that hops the times names them, and its settings are checked before any solve."""
+    import json
+    from pathlib import Path
+
+    from amorgs.ablation.global_study import GlobalStudy
+    from amorgs.errors import InputError
+
+    root = Path(__file__).resolve().parents[2]
+    committed = json.loads((root / "reference/global-search/alpha=0.160/study.json").read_text())
+    assert "variables" not in committed["hops"] and "variables" not in GlobalStudy(alpha=0.16).summary()["hops"]
+    assert committed["hops"] == GlobalStudy(alpha=0.16, hops=HopSettings(**committed["hops"])).summary()["hops"]
+    times = GlobalStudy(alpha=0.16, hops=HopSettings(variables=("tau_s", "tau_i", "tau_f")))
+    assert times.summary()["hops"]["variables"] == ("tau_s", "tau_i", "tau_f")
+    times.check()
+    with pytest.raises(InputError, match="--hop-variables: hop variables TOF"):
+        GlobalStudy(alpha=0.16, hops=HopSettings(variables=("TOF",))).check()
+
+
+def test_a_cr3bp_search_hopping_only_the_times_keeps_the_controls_of_its_incumbent():
+    """A real CR3BP MBH search (α = 1, uniform starts) whose hops move τ_s, τ_i, τ_f only: every hop's guess is its
+    run's incumbent — the last solution kept before it — with the same m_f and controls, other times."""
+    problem = get_problem("cr3bp")
+    solver = problem.make_local_solver({"max_iter": 300})
+    cell = Cell(sampler="uniform", strategy="mbh", alpha=1.0, searches=1, budget=1500, seed=3,
+                hops=HopSettings(scale=0.02, patience=6, variables=("tau_s", "tau_i", "tau_f")))
+    events, solutions = run_cell(cell, problem.sample_uniform, solver, problem.lower, problem.upper,
+                                 problem.variable_names)
+    guesses = events[[f"guess_{n}" for n in problem.variable_names]].to_numpy()
+    found = dict(zip(solutions["event"], solutions[list(problem.variable_names)].to_numpy()))
+    hops = 0
+    for _, run_events in events.groupby("run"):
+        incumbent = None
+        for i, row in run_events.iterrows():
+            if row["kind"] == "hop":
+                hops += 1
+                np.testing.assert_array_equal(guesses[i][3:], incumbent[3:])
+                assert np.any(guesses[i][:3] != incumbent[:3])
+            if row["accepted"]:
+                incumbent = found[row["solve"]]
+    assert hops >= 1
+
+
 def _record(objective: float, converged: bool = True) -> SolveRecord:
     return SolveRecord(status="x", converged=converged, solver_success=converged, x=np.zeros(2), objective=objective)
 
@@ -170,6 +246,7 @@ def test_runtime_to_target_is_the_expected_runtime_with_a_bootstrap_interval():
     (["--samplers", "bogus"], "--samplers: unknown sampler 'bogus'"),
     (["--strategies", "annealing"], "--strategies: strategy 'annealing'"),
     (["--hop", "levy"], "--hop: hop distribution 'levy'"),
+    (["--hop-variables", "tau_s", "tau_q"], "--hop-variables: hop variables tau_q: not variables of the problem"),
     (["--samplers", "amorgs"], "--samplers amorgs: a learned sampler needs --models-dir"),
     (["--budget", "0"], "--searches and --budget must be positive"),
     (["--dest", "/proc/x"], "--dest /proc/x: cannot write there"),

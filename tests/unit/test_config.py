@@ -256,8 +256,11 @@ def test_hash_is_stable_and_sensitive():
 #: capped its library slice (problems.cr3bp.library.max_rows_per_alpha: 2000): before, default c56031089737, smoke
 #: 748a4f977337, study 1afb23932539, study-paper 443d07aa265e, paper 6cde77f2a1dd (no solver options changed).
 #: smoke.yaml's ablation runs the arm selector_sampled too (issue 41): before, smoke 90ebe7692314.
-HASHES = {"default": "3b04e27f0302", "smoke": "0d1ac22b75b4", "study": "05a25f4c231a",
-          "study-paper": "15c9a161e209", "paper": "d674604d81e4"}
+#: ``global_search.hop_variables`` (issue 41: hops of the times only; empty, every variable, by default) added a
+#: key: before it default 3b04e27f0302, smoke 0d1ac22b75b4, study 05a25f4c231a, study-paper 15c9a161e209, paper
+#: d674604d81e4 (no solver options changed).
+HASHES = {"default": "a89861e90fbe", "smoke": "5dba321b8291", "study": "baa4b32ea058",
+          "study-paper": "6226b276eb16", "paper": "8cf80bb51f3d"}
 
 
 @pytest.mark.parametrize("name", HASHES)
@@ -339,6 +342,7 @@ def test_beta_beyond_what_a_transfer_can_keep_is_refused_naming_the_key(tmp_path
     ({"hop_distribution": "levy"}, "global_search.hop_distribution"),
     ({"deltas_kg": [0.0]}, "global_search.deltas_kg"),
     ({"samplers": ["uniform", "uniform"]}, "global_search.samplers"),
+    ({"hop_variables": ["tau_s", "tau_q"]}, "global_search.hop_variables"),
 ])
 def test_a_bad_global_search_setting_is_refused_naming_the_key(tmp_path, change, says):
     data = mapping()

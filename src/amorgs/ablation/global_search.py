@@ -108,7 +108,7 @@ def run_search(cell: Cell, r: int, sample, solver, lower: np.ndarray, upper: np.
     rng = np.random.default_rng([cell.seed, r])
     hop_solve = (lambda x0: hop_solver.solve(x0, cell.alpha)) if hop_solver is not None else None
     trace = search(lambda x0: solver.solve(x0, cell.alpha), _starts(sample, cell.alpha, rng), lower, upper,
-                   settings, cell.budget, rng, hop_solve)
+                   settings, cell.budget, rng, hop_solve, variable_names)
     guess_names = [f"guess_{name}" for name in variable_names]
 
     def options_hash(kind: str) -> str:

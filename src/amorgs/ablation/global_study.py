@@ -40,6 +40,7 @@ from amorgs.ablation.global_search import (
 from amorgs.alphas import alpha_label
 from amorgs.errors import InputError
 from amorgs.problems.cr3bp import BETA_KG
+from amorgs.problems.cr3bp.transcription import variable_names
 from amorgs.solvers.basin_hopping import HopSettings
 from amorgs.solvers.options import IpoptOptions
 
@@ -69,9 +70,12 @@ class GlobalStudy:
         """What the study ran, as JSON data (``study.json`` beside its events): α, cells, searches, the budget,
         seed, hop settings, δ and the solver options — what a reader of the events needs to recompute its
         statistics (e.g. ``amorgs design --strategy auto``)."""
+        hops = asdict(self.hops)
+        if not hops["variables"]:  # every variable hops: the study.json of the studies before hop variables existed
+            del hops["variables"]
         return {"alpha": self.alpha, "samplers": list(self.samplers), "strategies": list(self.strategies),
                 "searches": self.searches, "budget": self.budget, "seed": self.seed,
-                "hops": asdict(self.hops), "deltas": list(self.deltas), "solver": self.solver.to_dict()}
+                "hops": hops, "deltas": list(self.deltas), "solver": self.solver.to_dict()}
 
     def cells(self) -> list[Cell]:
         return [Cell(sampler=s, strategy=t, alpha=self.alpha, searches=self.searches, budget=self.budget,
@@ -91,6 +95,10 @@ class GlobalStudy:
                 strategy_settings(strategy, self.hops)
             except ValueError as exc:
                 raise InputError(f"--strategies: {exc}") from None
+        try:
+            self.hops.movable(variable_names())
+        except ValueError as exc:
+            raise InputError(f"--hop-variables: {exc}") from None
         if self.searches < 1 or self.budget < 1:
             raise InputError("--searches and --budget must be positive")
 

@@ -93,8 +93,8 @@ class DesignRequest:
     ``round_size`` slots of a round is a chain that hops from its best solution and restarts from the sampler
     after ``patience`` hops that do not improve it; :mod:`amorgs.solvers.basin_hopping`) — which spends the whole
     budget (``max_starts``, ``max_cpu_s``) looking for the best, then returns the n best η-diverse.   hop, hop_scale,
-    hop_shape, patience: the hops of ``mbh`` (distribution, step per unit draw as a fraction of the box width,
-    Pareto tail, misses before a restart).
+    hop_shape, patience, hop_variables: the hops of ``mbh`` (distribution, step per unit draw as a fraction of the
+    box width, Pareto tail, misses before a restart, the names of the variables a hop moves — empty: all).
     """
 
     alpha: float
@@ -116,12 +116,14 @@ class DesignRequest:
     hop_scale: float = HOPS.scale
     hop_shape: float = HOPS.shape
     patience: int = HOPS.patience
+    hop_variables: tuple[str, ...] = HOPS.variables
 
     def hops(self):
         """The :class:`~amorgs.solvers.basin_hopping.HopSettings` of ``mbh``."""
         from amorgs.solvers.basin_hopping import HopSettings
 
-        return HopSettings(distribution=self.hop, scale=self.hop_scale, shape=self.hop_shape, patience=self.patience)
+        return HopSettings(distribution=self.hop, scale=self.hop_scale, shape=self.hop_shape, patience=self.patience,
+                           variables=tuple(self.hop_variables))
 
     def check(self) -> None:
         """One :class:`ConfigError` naming the option for every out-of-range value (β against the problem's
@@ -153,9 +155,16 @@ class DesignRequest:
         if self.strategy not in STRATEGIES:
             raise ConfigError(f"--strategy {self.strategy!r}: choose {', '.join(STRATEGIES)}")
         try:
-            self.hops()
+            hops = self.hops()
         except ValueError as exc:
-            raise ConfigError(f"--hop/--hop-scale/--hop-shape/--patience: {exc}") from None
+            raise ConfigError(f"--hop/--hop-scale/--hop-shape/--patience/--hop-variables: {exc}") from None
+        if hops.variables:
+            from amorgs.problems.cr3bp.transcription import variable_names
+
+            try:
+                hops.movable(variable_names())
+            except ValueError as exc:
+                raise ConfigError(f"--hop-variables: {exc}") from None
 
 
 @dataclass
@@ -618,7 +627,7 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
         if request.strategy == "mbh":
             from amorgs.solvers.basin_hopping import Chains
 
-            chains = Chains(request.round_size, request.hops())
+            chains = Chains(request.round_size, request.hops(), problem.variable_names)
 
         def cpu_s() -> float:  # this process, the workers that ended, and the live ones so far
             return _cpu_seconds() - cpu0 + pool.cpu_seconds()

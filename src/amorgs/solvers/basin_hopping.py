@@ -11,8 +11,9 @@ ablation's cells.
 
 Problem-agnostic (this layer imports no problem): a search gets ``solve(x0) -> SolveRecord``, ``next_start() ->
 x0 or None`` (a sampler's next guess; None when a finite pool is exhausted), the box ``lower``/``upper`` of the
-stored decision vector and a seeded generator.  Hops move every component by ``scale`` × its box width × a draw
-of the hop distribution and clip to the box.  The objective is the solver's (for the CR3BP −m_f in kg, so
+stored decision vector and a seeded generator.  Hops move every component — or only the named ones
+(``HopSettings.variables``, e.g. the CR3BP's times) — by ``scale`` × its box width × a draw of the hop distribution
+and clip to the box.  The objective is the solver's (for the CR3BP −m_f in kg, so
 "lower" is "more fuel left").
 """
 
@@ -87,7 +88,9 @@ class HopSettings:
     variable's box width (dimensionless).   shape: the Pareto tail index (the other distributions ignore it).
     patience: consecutive non-improving hops before the run restarts from the sampler (0: never hop —
     multi-start).   min_improvement: how much a hop must lower the objective to be kept (objective units: kg
-    for the CR3BP).
+    for the CR3BP).   variables: the names of the stored variables a hop moves (the problem's
+    ``variable_names``; for the CR3BP ``("tau_s", "tau_i", "tau_f")`` hops only the times); empty (the default):
+    every one.
     """
 
     distribution: str = "pareto"
@@ -95,19 +98,42 @@ class HopSettings:
     shape: float = 1.5
     patience: int = 10
     min_improvement: float = 1e-6
+    variables: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.distribution not in HOP_DISTRIBUTIONS:
             raise ValueError(f"hop distribution {self.distribution!r}: one of {', '.join(HOP_DISTRIBUTIONS)}")
         if not (self.scale > 0 and self.shape > 0 and self.patience >= 0 and self.min_improvement >= 0):
             raise ValueError(f"hop settings out of range: {self}")
+        object.__setattr__(self, "variables", tuple(self.variables))  # a list from JSON reads as the same settings
+        if len(set(self.variables)) != len(self.variables):
+            raise ValueError(f"hop variables named twice: {', '.join(self.variables)}")
+
+    def movable(self, variable_names: tuple[str, ...] | None) -> np.ndarray | None:
+        """The boolean mask of the components a hop moves over a vector named ``variable_names``, or None for
+        every component; ``ValueError`` naming what is missing when :attr:`variables` names a variable that
+        ``variable_names`` lacks (or gives no names to look them up in)."""
+        if not self.variables:
+            return None
+        if variable_names is None:
+            raise ValueError(f"hop variables {', '.join(self.variables)}: the search was given no variable names")
+        unknown = [v for v in self.variables if v not in variable_names]
+        if unknown:
+            raise ValueError(f"hop variables {', '.join(unknown)}: not variables of the problem "
+                             f"({', '.join(variable_names[:6])}, …)")
+        return np.isin(np.asarray(variable_names), self.variables)
 
 
 def hop(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, settings: HopSettings,
-        rng: np.random.Generator) -> np.ndarray:
-    """``x`` moved by ``settings.scale`` × (upper − lower) × a draw of the hop distribution per component, clipped
-    to the box."""
-    draw = HOP_DISTRIBUTIONS[settings.distribution](rng, x.size, settings.shape)
+        rng: np.random.Generator, movable: np.ndarray | None = None) -> np.ndarray:
+    """``x`` moved by ``settings.scale`` × (upper − lower) × a draw of the hop distribution per component — per
+    component of the boolean mask ``movable`` only, where given (:meth:`HopSettings.movable`; the draws are made
+    for those components alone) — clipped to the box."""
+    if movable is None:
+        draw = HOP_DISTRIBUTIONS[settings.distribution](rng, x.size, settings.shape)
+    else:
+        draw = np.zeros(x.size)
+        draw[movable] = HOP_DISTRIBUTIONS[settings.distribution](rng, int(np.count_nonzero(movable)), settings.shape)
     return np.clip(x + settings.scale * (upper - lower) * draw, lower, upper)
 
 
@@ -144,12 +170,15 @@ class SearchTrace:
 
 def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], np.ndarray | None],
            lower: np.ndarray, upper: np.ndarray, settings: HopSettings, budget_iterations: int,
-           rng: np.random.Generator, solve_hop: Callable[[np.ndarray], SolveRecord] | None = None) -> SearchTrace:
+           rng: np.random.Generator, solve_hop: Callable[[np.ndarray], SolveRecord] | None = None,
+           variable_names: tuple[str, ...] | None = None) -> SearchTrace:
     """Run one search until the iterations of its solves reach ``budget_iterations`` (the solve that crosses it
     counts whole) or the sampler runs out.  ``settings.patience`` = 0 is multi-start; hops are re-solved by
-    ``solve_hop`` where given (``mbh_warm``), else by ``solve``."""
+    ``solve_hop`` where given (``mbh_warm``), else by ``solve``; ``variable_names`` name the vector's components
+    (needed where ``settings.variables`` picks the ones a hop moves)."""
     if budget_iterations <= 0:
         raise ValueError(f"budget_iterations must be positive, got {budget_iterations}")
+    movable = settings.movable(variable_names)
     trace = SearchTrace()
     incumbent: SolveRecord | None = None
     best = math.nan
@@ -165,7 +194,7 @@ def search(solve: Callable[[np.ndarray], SolveRecord], next_start: Callable[[], 
                 break
             incumbent, misses, run = None, 0, run + 1
         else:
-            x0 = hop(np.asarray(incumbent.x, float), lower, upper, settings, rng)
+            x0 = hop(np.asarray(incumbent.x, float), lower, upper, settings, rng, movable)
         record = (solve if restart or solve_hop is None else solve_hop)(np.asarray(x0, float))
         used += max(1, int(record.iterations))  # a solve that failed before IPOPT ran still costs: no endless loop
         accepted = improves(record, incumbent, settings.min_improvement)
@@ -190,10 +219,12 @@ class Chains:
     """``k`` MBH chains advanced a round at a time: each round proposes one start per chain — the sampler's next
     start for a chain with no feasible incumbent or ``patience`` misses in a row, else a hop from its incumbent —
     and takes the round's solves back in the same order (:meth:`update`).  The rule of :func:`search`, for a
-    caller that solves a round's starts in parallel (``amorgs design --strategy mbh``)."""
+    caller that solves a round's starts in parallel (``amorgs design --strategy mbh``); ``variable_names`` as for
+    :func:`search`."""
 
-    def __init__(self, k: int, settings: HopSettings):
+    def __init__(self, k: int, settings: HopSettings, variable_names: tuple[str, ...] | None = None):
         self.settings = settings
+        self.movable = settings.movable(variable_names)
         self.incumbents: list[SolveRecord | None] = [None] * k
         self.misses = [0] * k
 
@@ -215,7 +246,8 @@ class Chains:
                 guesses.append(next(drawn))
                 kinds.append("start")
             else:
-                guesses.append(hop(np.asarray(self.incumbents[i].x, float), lower, upper, self.settings, rng))
+                guesses.append(hop(np.asarray(self.incumbents[i].x, float), lower, upper, self.settings, rng,
+                                   self.movable))
                 kinds.append("hop")
         return np.array(guesses), kinds
 

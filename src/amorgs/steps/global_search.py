@@ -29,8 +29,8 @@ class SearchCellSettings(Section):
     """One cell: ``searches`` searches of ``strategy`` from ``sampler``'s starts at the test ``alpha`` (N), each of
     ``budget`` IPOPT iterations, seeded from ``seed`` (derived from ``global_search.seed``, α, strategy and
     sampler) and search index; hops of ``hop_distribution`` × ``hop_scale`` of the box width (Pareto tail
-    ``hop_shape``), a restart after ``patience`` misses; solved with ``solver``.  The reuse arms draw on the
-    training-α rows (``train_alphas``) of the high-quality table."""
+    ``hop_shape``; of the ``hop_variables`` only, where named), a restart after ``patience`` misses; solved with
+    ``solver``.  The reuse arms draw on the training-α rows (``train_alphas``) of the high-quality table."""
 
     alpha: float
     strategy: Literal[tuple(STRATEGIES)]  # type: ignore[valid-type]
@@ -42,6 +42,7 @@ class SearchCellSettings(Section):
     hop_scale: float
     hop_shape: float
     patience: Annotated[int, Field(ge=1)]
+    hop_variables: tuple[str, ...] = ()
     solver: IpoptOptions
     train_alphas: tuple[float, ...]
     perturbation_scale: Annotated[float, Field(ge=0)]
@@ -56,8 +57,9 @@ def _cell_settings(cfg: Config, w: Wildcards) -> SearchCellSettings:
         alpha=alpha, strategy=w["strategy"], sampler=w["sampler"], searches=g.searches, budget=g.budget,
         seed=cell_seed(g.seed, "cr3bp", alpha, f"{w['strategy']}/{w['sampler']}"),
         hop_distribution=g.hop_distribution, hop_scale=g.hop_scale, hop_shape=g.hop_shape, patience=g.patience,
-        solver=cr3bp.solver, train_alphas=cr3bp.alphas.train_values(), perturbation_scale=a.perturbation_scale,
-        gmm_components=a.gmm_components, selection_oversample=a.selection_oversample)
+        hop_variables=g.hop_variables, solver=cr3bp.solver, train_alphas=cr3bp.alphas.train_values(),
+        perturbation_scale=a.perturbation_scale, gmm_components=a.gmm_components,
+        selection_oversample=a.selection_oversample)
 
 
 def run_cell(job: Job, run) -> None:
@@ -71,7 +73,7 @@ def run_cell(job: Job, run) -> None:
     sampler = cell_sampler("global_search_cell", job)
     cell = Cell(sampler=s.sampler, strategy=s.strategy, alpha=s.alpha, searches=s.searches, budget=s.budget,
                 seed=s.seed, hops=HopSettings(distribution=s.hop_distribution, scale=s.hop_scale, shape=s.hop_shape,
-                                              patience=s.patience))
+                                              patience=s.patience, variables=s.hop_variables))
     warm = hop_solver_options(s.strategy, s.solver)
     events, solutions = search_cell(cell, sampler.sample, problem.make_local_solver(s.solver), problem.lower,
                                     problem.upper, problem.variable_names,
