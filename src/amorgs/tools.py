@@ -210,7 +210,11 @@ def cmd_best_known(args: argparse.Namespace) -> None:
         if not Path(path).is_file():
             raise InputError(f"--add {path}: no such file")
         table = pd.read_parquet(path) if path.endswith(".parquet") else pd.read_csv(path)
-        improved += bk.add_solutions(record, table, {"kind": "search", "where": str(path), "commit": commit})
+        where = bk.source_where(path, Path.cwd())
+        if Path(where).is_absolute():
+            print(f"--add {path}: outside this checkout — the record will name a file only this machine has "
+                  "(commit the table, then add it from the checkout)", file=sys.stderr)
+        improved += bk.add_solutions(record, table, {"kind": "search", "where": where, "commit": commit})
     if improved:
         bk.save_record(record, args.record)
     for label, entry in sorted(record["alphas"].items()):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -48,3 +49,24 @@ def test_the_command_names_a_missing_table_in_one_line(tmp_path):
                           str(tmp_path / "nope.parquet")], capture_output=True, text=True)
     assert out.returncode != 0 and "--add" in out.stderr and "no such file" in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_an_entry_names_its_table_relative_to_the_checkout(tmp_path, library_rows):
+    checkout, outside = tmp_path / "checkout", tmp_path / "elsewhere"
+    (checkout / "runs").mkdir(parents=True)
+    outside.mkdir()
+    library_rows.iloc[[3]].to_parquet(checkout / "runs" / "solutions.parquet")
+    library_rows.iloc[[0]].to_parquet(outside / "solutions.parquet")
+    assert bk.source_where(checkout / "runs" / "solutions.parquet", checkout) == "runs/solutions.parquet"
+    assert bk.source_where(outside / "solutions.parquet", checkout) == str((outside / "solutions.parquet").resolve())
+
+    def add(table):
+        return subprocess.run([sys.executable, "-m", "amorgs", "best-known", "--record", "best.json", "--add", table],
+                              capture_output=True, text=True, cwd=checkout)
+
+    inside = add(str(checkout / "runs" / "solutions.parquet"))  # absolute, but inside the checkout
+    assert inside.returncode == 0 and "outside this checkout" not in inside.stderr
+    assert bk.read_record(checkout / "best.json")["alphas"]["1.000"]["source"]["where"] == "runs/solutions.parquet"
+    far = add(str(outside / "solutions.parquet"))
+    assert far.returncode == 0 and "outside this checkout" in far.stderr
+    assert Path(bk.read_record(checkout / "best.json")["alphas"]["1.000"]["source"]["where"]).is_absolute()

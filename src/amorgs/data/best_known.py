@@ -127,6 +127,16 @@ def from_library(record: dict, library_dir: str | Path, source_commit: str = "")
     return sorted(set(improved))
 
 
+def source_where(path: str | Path, root: str | Path) -> str:
+    """How the record names a solutions table: relative to ``root`` (the checkout) where it lies inside it, so that
+    the entry names a file a reader of the repository can open; else its absolute path."""
+    resolved = Path(path).resolve()
+    try:
+        return resolved.relative_to(Path(root).resolve()).as_posix()
+    except ValueError:
+        return str(resolved)
+
+
 def save_record(record: dict, path: str | Path = DEFAULT_PATH) -> None:
     """Write the record atomically."""
     write_json(record, path)
