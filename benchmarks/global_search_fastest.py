@@ -2,7 +2,7 @@
 
 For every ``reference/global-search/alpha=*/`` and each δ of its study: the cell with the lowest ERT (IPOPT
 iterations to come within δ kg of the study's best known m_f) and every cell's ERT ÷ that fastest cell's, with the
-study's percentile bootstrap over searches (each cell resampled on its own, the study's seed and budget).  A cell
+study's percentile bootstrap over searches (each pair of cells resampled on its own, the study's seed and budget).  A cell
 whose interval's lower end is at most 1 is *not significantly slower* than the fastest: the fastest cell is
 significantly the fastest only where it is alone in that list.  A cell whose searches are one search repeated (a
 multi-start from a sampler that ignores the seed, the selector's one ranking) has no interval: its ERT is exact for
@@ -30,6 +30,15 @@ def one_search_repeated(cell: pd.DataFrame) -> bool:
     return cell["search"].nunique() > 1 and len(runs) == 1
 
 
+def pairwise(events: pd.DataFrame, top: tuple[str, str], other: tuple[str, str], best: float, delta: float,
+             study: dict) -> pd.DataFrame:
+    """``other``'s ERT ÷ ``top``'s, bootstrapped on those two cells' events alone: the interval does not depend on
+    which other cells the study holds (resampling every cell from one stream would shift it as cells are added)."""
+    pair = events[[(t, s) in (top, other) for t, s in zip(events["strategy"], events["sampler"])]]
+    ratios = ert_ratios(pair, best, deltas=(delta,), baseline=top, seed=study["seed"], budget=study["budget"])
+    return ratios[(ratios["strategy"] == other[0]) & (ratios["sampler"] == other[1])]
+
+
 def fastest(folder: Path) -> list[dict]:
     """Per δ: the fastest cell, its ERT with interval and successes, and the cells not significantly slower."""
     study = json.loads((folder / "study.json").read_text())
@@ -42,10 +51,10 @@ def fastest(folder: Path) -> list[dict]:
         if here.empty:
             continue
         top = here.sort_values("ert").iloc[0]
-        ratios = ert_ratios(events, best, deltas=(delta,), baseline=(top["strategy"], top["sampler"]),
-                            seed=study["seed"], budget=study["budget"])
-        level = ratios[(ratios["ratio_lo"] <= 1) & ~((ratios["strategy"] == top["strategy"]) &
-                                                      (ratios["sampler"] == top["sampler"]))]
+        ratios = pd.concat([pairwise(events, (top["strategy"], top["sampler"]), other, best, delta, study)
+                            for other in sorted(set(zip(events["strategy"], events["sampler"])))
+                            if other != (top["strategy"], top["sampler"])], ignore_index=True)
+        level = ratios[ratios["ratio_lo"] <= 1]
         cell = events[(events["strategy"] == top["strategy"]) & (events["sampler"] == top["sampler"])]
         interval = ("one search repeated" if one_search_repeated(cell)
                     else f"{top['ert_lo']:.0f}–{top['ert_hi']:.0f}")
