@@ -65,6 +65,20 @@ def test_auto_on_the_committed_studies_follows_their_evidence(monkeypatch):
         assert chosen.strategy == "mbh" and folder in why and "multi-start from the same sampler in none" in why
 
 
+@pytest.mark.parametrize(("alpha", "folder", "selector"), [(0.11, "alpha=0.100", "multistart"),
+                                                           (0.17, "alpha=0.160", "mbh")])
+def test_auto_at_the_low_alpha_studies_follows_their_evidence(monkeypatch, alpha, folder, selector):
+    """What docs/global-search.md says of α = 0.1 and 0.16: multi-start from reuse and from the continuation (the
+    frontier's best learned arm there); from the selector's ranking MBH at 0.16 (multi-start from it never within
+    2 kg) but multi-start at 0.1, where that ranking alone is the fastest cell."""
+    monkeypatch.chdir(ROOT)
+    for sampler in ("nearest_alpha", "continuation"):
+        chosen, why = resolve_strategy(request(alpha=alpha, sampler=sampler), DEFAULT_GLOBAL_SEARCH)
+        assert chosen.strategy == "multistart" and f"MBH × {sampler}" in why and folder in why
+    chosen, why = resolve_strategy(request(alpha=alpha, sampler="selector"), DEFAULT_GLOBAL_SEARCH)
+    assert chosen.strategy == selector and folder in why
+
+
 def test_an_unknown_strategy_is_refused_naming_the_choices():
     with pytest.raises(ConfigError, match="--strategy 'hop'.*auto, multistart, mbh"):
         request(strategy="hop").check()
