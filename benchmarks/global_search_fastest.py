@@ -2,11 +2,12 @@
 
 For every ``reference/global-search/alpha=*/`` and each δ of its study: the cell with the lowest ERT (IPOPT
 iterations to come within δ kg of the study's best known m_f) and every cell's ERT ÷ that fastest cell's, with the
-study's percentile bootstrap over searches (each pair of cells resampled on its own, the study's seed and budget).  A cell
-whose interval's lower end is at most 1 is *not significantly slower* than the fastest: the fastest cell is
-significantly the fastest only where it is alone in that list.  A cell whose searches are one search repeated (a
-multi-start from a sampler that ignores the seed, the selector's one ranking) has no interval: its ERT is exact for
-that trained selector, and ratios against it resample the other cell alone.  Reproduce with::
+study's percentile bootstrap over searches (each pair of cells resampled on its own, the study's seed and
+budget).  A cell whose interval's lower end is at most 1 is *not significantly slower* than the fastest: the fastest
+cell is significantly the fastest only where it is alone in that list.  A cell whose searches are one search
+repeated (:func:`~amorgs.ablation.global_search.repeats_search_0`: a multi-start from a sampler that ignores the
+seed, the selector's one ranking) has no interval: its ERT is exact for that trained selector, and ratios against
+it resample the other cell alone.  Reproduce with::
 
     python benchmarks/global_search_fastest.py
 """
@@ -19,15 +20,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from amorgs.ablation.global_search import ert_ratios
+from amorgs.ablation.global_search import Cell, ert_ratios, repeats_search_0
 
 STUDIES = Path("reference/global-search")
-
-
-def one_search_repeated(cell: pd.DataFrame) -> bool:
-    """Whether every search of a cell's events solved the same sequence (iterations and objective, solve by solve)."""
-    runs = {tuple(zip(g["iterations"], g["objective"].round(9))) for _, g in cell.groupby("search")}
-    return cell["search"].nunique() > 1 and len(runs) == 1
 
 
 def pairwise(events: pd.DataFrame, top: tuple[str, str], other: tuple[str, str], best: float, delta: float,
@@ -55,9 +50,9 @@ def fastest(folder: Path) -> list[dict]:
                             for other in sorted(set(zip(events["strategy"], events["sampler"])))
                             if other != (top["strategy"], top["sampler"])], ignore_index=True)
         level = ratios[ratios["ratio_lo"] <= 1]
-        cell = events[(events["strategy"] == top["strategy"]) & (events["sampler"] == top["sampler"])]
-        interval = ("one search repeated" if one_search_repeated(cell)
-                    else f"{top['ert_lo']:.0f}–{top['ert_hi']:.0f}")
+        cell = Cell(sampler=top["sampler"], strategy=top["strategy"], alpha=study["alpha"],
+                    searches=study["searches"], budget=study["budget"], seed=study["seed"])
+        interval = "one search repeated" if repeats_search_0(cell) else f"{top['ert_lo']:.0f}–{top['ert_hi']:.0f}"
         rows.append({"alpha": f"{study['alpha']:g}", "delta_kg": f"{delta:g}",
                      "fastest": f"{top['strategy']} × {top['sampler']}",
                      "ERT (95 %)": f"{top['ert']:.0f} ({interval})",
