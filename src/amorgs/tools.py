@@ -247,7 +247,8 @@ def cmd_global_search(args: argparse.Namespace) -> None:
         raise InputError(f"--hop: {exc}") from None
     study = GlobalStudy(alpha=args.alpha, samplers=tuple(args.samplers), strategies=tuple(args.strategies),
                         searches=args.searches, budget=args.budget, seed=args.seed, hops=hops, deltas=tuple(args.deltas),
-                        solver=IpoptOptions(max_iter=args.max_iter), library_dir=args.library_dir, models_dir=args.models_dir)
+                        solver=IpoptOptions(max_iter=args.max_iter), library_dir=args.library_dir, models_dir=args.models_dir,
+                        library_alphas=tuple(args.library_alphas) if args.library_alphas else None)
     if args.from_events:
         import pandas as pd
 
@@ -618,6 +619,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the searches and the bootstrap")
     p.add_argument("--workers", type=int, default=1, help="solver processes")
     p.add_argument("--library-dir", default="data/library", help="the solution library (reuse arms, best known)")
+    p.add_argument("--library-alphas", type=float, nargs="+", default=None, metavar="ALPHA",
+                   help="the library α the reuse arms draw on, e.g. a sparse design's training α 0.1 0.5 1.0 "
+                        "(default: every library α but --alpha)")
     p.add_argument("--models-dir", default=None, help="checkpoints of learned samplers (e.g. data/models/cr3bp)")
     p.add_argument("--dest", default="results/global-search", help="where the tables and the figure go")
     p.add_argument("--from-events", default=None, metavar="DIR",

@@ -441,6 +441,28 @@ def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tabl
         run_study(study, checkpoint=folder, report=lines.append)
 
 
+def test_the_reuse_arms_draw_on_the_named_library_alphas_only():
+    """A sparse design's study names the library α reuse may see (``--library-alphas``): the pools hold those α
+    alone, the study records them (a study that names none records nothing new), and an α the library lacks or the
+    searched α itself is refused before any solve, naming the option."""
+    from amorgs.ablation.global_study import GlobalStudy, training_high_quality
+    from amorgs.errors import InputError
+
+    sparse = GlobalStudy(alpha=0.3, samplers=("nearest_alpha",), library_alphas=(0.1, 0.5, 1.0))
+    sparse.check()
+    hq, train = training_high_quality(sparse)
+    assert train == (0.1, 0.5, 1.0) and sorted(hq["alpha"].round(6).unique()) == [0.1, 0.5, 1.0] and len(hq) > 100
+    assert (hq["m_f"] >= sparse.min_final_mass_kg).all() and hq["converged"].all()
+    assert sparse.summary()["library_alphas"] == [0.1, 0.5, 1.0]
+    assert "library_alphas" not in GlobalStudy(alpha=0.3).summary()
+    _, every = training_high_quality(GlobalStudy(alpha=0.3, samplers=("nearest_alpha",)))
+    assert 0.3 not in every and {0.1, 0.2, 0.4, 0.5, 1.0} <= set(every)
+    with pytest.raises(InputError, match=r"--library-alphas: 0\.123 not in data/library \(it holds α 0\.1, "):
+        training_high_quality(GlobalStudy(alpha=0.3, samplers=("nearest_alpha",), library_alphas=(0.1, 0.123)))
+    with pytest.raises(InputError, match=r"--library-alphas: holds the searched α 0\.3"):
+        GlobalStudy(alpha=0.3, samplers=("nearest_alpha",), library_alphas=(0.3, 0.5)).check()
+
+
 def test_a_multistart_from_the_selector_is_solved_once_for_every_seed(tmp_path, tiny_models_dir):
     """The selector's guesses are its ranking whatever the seed, and a multi-start never hops: every search is
     search 0, so the study (and the workflow's cell) solves it once, says so, and its tables equal the searches

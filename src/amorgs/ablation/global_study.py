@@ -2,7 +2,8 @@
 the tables that answer "how soon is the best known trajectory reached" (:mod:`amorgs.ablation.global_search`).
 
 The library-based samplers (reuse and its kin) draw on the library's high-quality rows at the *training* α: every
-library α except the study's (leave-one-α-out, as the frontier's folds), β-filtered.  The best known objective is
+library α except the study's (leave-one-α-out, as the frontier's folds), or the ones named (``library_alphas``: a
+sparse design's, e.g. the frontier's sparse-3 fold 0.1, 0.5, 1.0), β-filtered.  The best known objective is
 the lowest of the library's verified rows at the study's α and of every feasible solution the study found
 (``best_known_source`` says which).
 """
@@ -49,8 +50,8 @@ from amorgs.solvers.options import IpoptOptions
 class GlobalStudy:
     """What a study runs: ``searches`` searches of ``budget`` IPOPT iterations for every (strategy, sampler) at
     ``alpha``; ``solver`` is the CR3BP solver's options; β (kg) selects the library rows the
-    library-based samplers draw on; ``models_dir`` holds the checkpoints of learned samplers; ``record`` is the
-    best-known record that joins the target."""
+    library-based samplers draw on, at ``library_alphas`` (N; None: every library α but ``alpha``); ``models_dir``
+    holds the checkpoints of learned samplers; ``record`` is the best-known record that joins the target."""
 
     alpha: float
     samplers: tuple[str, ...] = ("uniform", "nearest_alpha")
@@ -65,17 +66,20 @@ class GlobalStudy:
     library_dir: str = "data/library"
     models_dir: str | None = None
     record: str = "data/best_known/cr3bp.json"
+    library_alphas: tuple[float, ...] | None = None
 
     def summary(self) -> dict:
         """What the study ran, as JSON data (``study.json`` beside its events): α, cells, searches, the budget,
         seed, hop settings, δ and the solver options — what a reader of the events needs to recompute its
-        statistics (e.g. ``amorgs design --strategy auto``)."""
+        statistics (e.g. ``amorgs design --strategy auto``); ``library_alphas`` where named (a study of every
+        library α but its own, as every study before them, records none)."""
         hops = asdict(self.hops)
         if not hops["variables"]:  # every variable hops: the study.json of the studies before hop variables existed
             del hops["variables"]
         return {"alpha": self.alpha, "samplers": list(self.samplers), "strategies": list(self.strategies),
                 "searches": self.searches, "budget": self.budget, "seed": self.seed,
-                "hops": hops, "deltas": list(self.deltas), "solver": self.solver.to_dict()}
+                "hops": hops, "deltas": list(self.deltas), "solver": self.solver.to_dict(),
+                **({"library_alphas": list(self.library_alphas)} if self.library_alphas is not None else {})}
 
     def cells(self) -> list[Cell]:
         return [Cell(sampler=s, strategy=t, alpha=self.alpha, searches=self.searches, budget=self.budget,
@@ -101,6 +105,8 @@ class GlobalStudy:
             raise InputError(f"--hop-variables: {exc}") from None
         if self.searches < 1 or self.budget < 1:
             raise InputError("--searches and --budget must be positive")
+        if self.library_alphas is not None and alpha_label(self.alpha) in map(alpha_label, self.library_alphas):
+            raise InputError(f"--library-alphas: holds the searched α {self.alpha:g} (reuse must not see the answer)")
 
 
 def library_rows(library_dir: str, alpha: float) -> pd.DataFrame:
@@ -111,8 +117,9 @@ def library_rows(library_dir: str, alpha: float) -> pd.DataFrame:
 
 
 def training_high_quality(study: GlobalStudy) -> tuple[pd.DataFrame | None, tuple[float, ...] | None]:
-    """The library's high-quality rows at every library α but the study's (None, None when no sampler needs
-    them)."""
+    """The library's high-quality rows at the study's ``library_alphas``, or at every library α but the study's
+    where it names none, and those α (None, None when no sampler needs them).  ``InputError`` naming the α when a
+    named one is not in the library."""
     if not any(get_arm(s).high_quality for s in study.samplers):
         return None, None
     from amorgs.data.library import read_library, read_manifest
@@ -120,7 +127,15 @@ def training_high_quality(study: GlobalStudy) -> tuple[pd.DataFrame | None, tupl
     manifest = read_manifest(study.library_dir, "cr3bp")
     if manifest is None:
         raise InputError(f"{study.library_dir}: no solution library (a library-based sampler needs one)")
-    train = tuple(float(e["alpha"]) for e in manifest["per_alpha"] if alpha_label(e["alpha"]) != alpha_label(study.alpha))
+    held = [float(e["alpha"]) for e in manifest["per_alpha"]]
+    if study.library_alphas is not None:
+        missing = [a for a in study.library_alphas if alpha_label(a) not in map(alpha_label, held)]
+        if missing:
+            raise InputError(f"--library-alphas: {', '.join(f'{a:g}' for a in missing)} not in {study.library_dir} "
+                             f"(it holds α {', '.join(f'{a:g}' for a in held)})")
+        train = tuple(float(a) for a in study.library_alphas)
+    else:
+        train = tuple(a for a in held if alpha_label(a) != alpha_label(study.alpha))
     if not train:
         raise InputError(f"{study.library_dir}: no library α besides {study.alpha} to reuse")
     frames = [read_library(study.library_dir, "cr3bp", alpha_label(a)) for a in train]
