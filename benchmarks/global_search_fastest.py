@@ -1,6 +1,7 @@
 """Which strategy × sampler reaches the funnel bottom fastest, at each committed global-search study (issue 41).
 
-For every ``reference/global-search/alpha=*/`` and each δ of its study: the cell with the lowest ERT (IPOPT
+For every ``reference/global-search/alpha=*/`` (the leave-one-α-out studies, design ``loo``) and
+``reference/global-search/<design>/alpha=*/`` (a sparse design's, e.g. ``sparse-3``), and each δ of its study: the cell with the lowest ERT (IPOPT
 iterations to come within δ kg of the study's best known m_f) and every cell's ERT ÷ that fastest cell's, with the
 study's percentile bootstrap over searches (each pair of cells resampled on its own, the study's seed and
 budget).  A cell whose interval's lower end is at most 1 is *not significantly slower* than the fastest: the fastest
@@ -53,7 +54,8 @@ def fastest(folder: Path) -> list[dict]:
         cell = Cell(sampler=top["sampler"], strategy=top["strategy"], alpha=study["alpha"],
                     searches=study["searches"], budget=study["budget"], seed=study["seed"])
         interval = "one search repeated" if repeats_search_0(cell) else f"{top['ert_lo']:.0f}–{top['ert_hi']:.0f}"
-        rows.append({"alpha": f"{study['alpha']:g}", "delta_kg": f"{delta:g}",
+        rows.append({"design": folder.parent.name if folder.parent != STUDIES else "loo",
+                     "alpha": f"{study['alpha']:g}", "delta_kg": f"{delta:g}",
                      "fastest": f"{top['strategy']} × {top['sampler']}",
                      "ERT (95 %)": f"{top['ert']:.0f} ({interval})",
                      "successes": f"{int(top['successes'])}/{int(top['searches'])}",
@@ -64,7 +66,8 @@ def fastest(folder: Path) -> list[dict]:
 
 
 def main() -> None:
-    rows = [row for folder in sorted(STUDIES.glob("alpha=*")) for row in fastest(folder)]
+    folders = [*sorted(STUDIES.glob("alpha=*")), *sorted(STUDIES.glob("*/alpha=*"))]
+    rows = [row for folder in folders for row in fastest(folder)]
     print(pd.DataFrame(rows).to_markdown(index=False))
 
 
