@@ -1,14 +1,14 @@
 """Which strategy × sampler reaches the funnel bottom fastest, at each committed global-search study (issue 41).
 
 For every ``reference/global-search/alpha=*/`` (the leave-one-α-out studies, design ``loo``) and
-``reference/global-search/<design>/alpha=*/`` (a sparse design's, e.g. ``sparse-3``), and each δ of its study: the cell with the lowest ERT (IPOPT
-iterations to come within δ kg of the study's best known m_f) and every cell's ERT ÷ that fastest cell's, with the
-study's percentile bootstrap over searches (each pair of cells resampled on its own, the study's seed and
-budget).  A cell whose interval's lower end is at most 1 is *not significantly slower* than the fastest: the fastest
-cell is significantly the fastest only where it is alone in that list.  A cell whose searches are one search
-repeated (:func:`~amorgs.ablation.global_search.repeats_search_0`: a multi-start from a sampler that ignores the
-seed, the selector's one ranking) has no interval: its ERT is exact for that trained selector, and ratios against
-it resample the other cell alone.  Reproduce with::
+``reference/global-search/<design>/alpha=*/`` (a sparse design's, e.g. ``sparse-3``), and each δ of its study: the
+cell with the lowest ERT (IPOPT iterations to come within δ kg of the study's best known m_f) and every cell's ERT ÷
+that fastest cell's, with the study's percentile bootstrap over searches (each pair of cells resampled on its own,
+the study's seed and budget). A cell whose interval's lower end is at most 1 is *not significantly slower* than the
+fastest: the fastest cell is significantly the fastest only where it is alone in that list. A cell whose searches
+are one search repeated (:func:`~amorgs.ablation.global_search.repeats_search_0`: a multi-start from a sampler that
+ignores the seed, the selector's one ranking) has no interval: its ERT is exact for that trained selector, and
+ratios against it resample the other cell alone. Reproduce with::
 
     python benchmarks/global_search_fastest.py
 """

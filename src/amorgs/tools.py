@@ -353,7 +353,7 @@ def cmd_reference_export(args: argparse.Namespace) -> None:
 def cmd_reference_certify(args: argparse.Namespace) -> None:
     from pathlib import Path
 
-    from amorgs.certification import certify_all, certify_reference, record_at_commit
+    from amorgs.certification import certify_all, certify_reference, record_at_commit, reference_name
     from amorgs.data.io import check_writable_folder, write_json
     from amorgs.errors import InputError
 
@@ -373,7 +373,10 @@ def cmd_reference_certify(args: argparse.Namespace) -> None:
         raise SystemExit("amorgs reference-certify --record: only with --at-commit (records the commit it stays valid at)")
     if args.blas_core and not args.at_commit:
         raise SystemExit("amorgs reference-certify --blas-core: only with --at-commit (today's NLP reads no BLAS)")
-    output = Path(args.output or f"results/certificates/{Path(args.reference).name}-seed{args.seed}.json")
+    # Named by the reference's path under reference/ ("global-search--alpha=0.300"): two references whose folders
+    # share a name (a sparse design's study at the same α) keep their own certificates.
+    name = reference_name(args.reference).replace("/", "--")
+    output = Path(args.output or f"results/certificates/{name}-seed{args.seed}.json")
     if output.is_dir():
         raise InputError(f"--output {output}: a directory")
     try:  # refuse an output that cannot be written before any solve
@@ -684,5 +687,6 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the sample (default 0)")
     p.add_argument("--workers", type=int, default=1, help="solver processes (default 1)")
     p.add_argument("--output", default=None,
-                   help="the certificate (JSON; default results/certificates/<reference>-seed<seed>.json)")
+                   help="the certificate (JSON; default results/certificates/<name>-seed<seed>.json, <name> its "
+                        "path under reference/ with / as --)")
     p.set_defaults(func=cmd_reference_certify)

@@ -303,3 +303,22 @@ def test_the_readme_lead_says_what_the_committed_frontier_says():
         assert (f"{name} {r.ratio_to_reuse:.2f}, " in lead or f"{name} {r.ratio_to_reuse:.2f}, 95 % " in lead
                 ), (name, r.ratio_to_reuse)
         assert f"{r.ratio_to_reuse_ci95_low:.2f}–{r.ratio_to_reuse_ci95_high:.2f}" in lead, arm
+
+
+def test_two_references_whose_folders_share_a_name_keep_their_own_certificates(tmp_path):
+    """The default certificate is named by the reference's path under reference/ (``/`` as ``--``): the
+    leave-one-α-out and the sparse-3 global-search studies at α = 0.3, both folders ``alpha=0.300``, do not
+    overwrite each other's certificate."""
+    import json
+
+    names = ["global-search/alpha=0.300", "global-search/sparse-3/alpha=0.300"]
+    for name in names:
+        if not (ROOT / "reference" / name).is_dir():
+            pytest.skip(f"the committed reference {name} is absent")
+        out = subprocess.run([sys.executable, "-m", "amorgs", "reference-certify", str(ROOT / "reference" / name),
+                              "--sample", "1"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stdout + out.stderr
+    made = sorted(p.name for p in (tmp_path / "results" / "certificates").iterdir())
+    assert made == ["global-search--alpha=0.300-seed0.json", "global-search--sparse-3--alpha=0.300-seed0.json"]
+    for name, file in zip(names, made):
+        assert json.loads((tmp_path / "results" / "certificates" / file).read_text())["exact"], name
