@@ -250,6 +250,8 @@ def test_runtime_to_target_is_the_expected_runtime_with_a_bootstrap_interval():
     (["--samplers", "amorgs"], "--samplers amorgs: a learned sampler needs --models-dir"),
     (["--budget", "0"], "--searches and --budget must be positive"),
     (["--dest", "/proc/x"], "--dest /proc/x: cannot write there"),
+    (["--samplers", "nearest_alpha", "--library-alphas", "0.5", "0.123"], "--library-alphas: 0.123 not in data/library"),
+    (["--samplers", "nearest_alpha", "--library-alphas", "1.0"], "--library-alphas: holds the searched α 1"),
 ])
 def test_the_global_search_command_refuses_bad_input_in_one_line(args, says, tmp_path):
     import subprocess
@@ -260,6 +262,7 @@ def test_the_global_search_command_refuses_bad_input_in_one_line(args, says, tmp
                          capture_output=True, text=True, timeout=120)
     assert out.returncode != 0 and says in out.stderr, out.stderr
     assert len(out.stderr.strip().splitlines()) <= 2
+    assert not (tmp_path / ".searches").exists()  # refused before the checkpoint folder is made
 
 
 def test_the_ert_ratio_to_the_baseline_has_an_interval_that_tells_faster_from_not():

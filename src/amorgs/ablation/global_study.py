@@ -280,6 +280,7 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
     (the selector's one ranking) is solved once, its search 0 copied to the others (:func:`_same_searches`: the
     same tables as solving each).  ``report`` receives a line per finished search (default: standard error)."""
     study.check()
+    hq, train = training_high_quality(study)  # a library α it lacks is refused before the checkpoint is made
     say = report or (lambda line: print(line, file=sys.stderr, flush=True))
     for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # before the workers import numpy
         os.environ.setdefault(key, "1")
@@ -303,7 +304,6 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
         results[i] = result
         say(_progress_line(len(results), total, resumed, tasks[i], started))
 
-    hq, train = training_high_quality(study)
     for cell in dict.fromkeys(tasks[i][0] for i in copies):
         say(f"global-search: {cell.strategy} × {cell.sampler} starts every search from the same guesses (the "
             f"sampler does not use the seed): search 0 is solved once and stands for all {cell.searches}")
