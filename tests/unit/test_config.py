@@ -104,15 +104,36 @@ def _leaves(node: dict, prefix: str = ""):
             yield f"{prefix}{key}", value
 
 
+def _used_after(name: str) -> str | None:
+    """The shipped file that ``config/<name>.yaml`` is used after, as its own usage line says (``--configfile
+    config/<base>.yaml config/<name>.yaml``), or None for a file used alone."""
+    import re
+
+    text = (ROOT / "config" / f"{name}.yaml").read_text()
+    found = re.search(rf"--configfile config/(\S+)\.yaml config/{re.escape(name)}\.yaml", text)
+    return found.group(1) if found else None
+
+
 @pytest.mark.parametrize("name", CONFIGS)
 def test_a_shipped_config_holds_only_what_it_changes(name):
-    """Every key a shipped file sets differs from its default (no copies of the defaults to keep in step)."""
-    defaults = C.defaults()
+    """Every key a shipped file sets differs from what it overrides — the defaults, or for a file used after
+    another (its usage line) the defaults with that file merged (no copies of the defaults to keep in step)."""
+    base = _used_after(name)
+    under = C.deep_merge(C.defaults(), overrides(base)) if base else C.defaults()
+    what = f"config/{base}.yaml's value" if base else "the default"
     for key, value in _leaves(overrides(name)):
-        node = defaults
+        node = under
         for part in key.split("."):
             node = node[part]
-        assert value != node, f"config/{name}.yaml: {key}: {value!r} is the default"
+        assert value != node, f"config/{name}.yaml: {key}: {value!r} is {what}"
+
+
+def test_a_file_used_after_another_is_checked_against_that_file():
+    """The sparse-3 overlay turns off what config/global-search.yaml turns on (the transfer data): a change there,
+    the default everywhere else."""
+    assert _used_after("global-search-sparse-3") == "global-search" and _used_after("smoke") is None
+    assert overrides("global-search-sparse-3")["transfer"]["enabled"] is False
+    assert overrides("global-search")["transfer"]["enabled"] is True
 
 
 def test_snakemake_merges_files_and_overrides_as_the_loader_does(tmp_path):
