@@ -252,6 +252,7 @@ def test_runtime_to_target_is_the_expected_runtime_with_a_bootstrap_interval():
     (["--dest", "/proc/x"], "--dest /proc/x: cannot write there"),
     (["--samplers", "nearest_alpha", "--library-alphas", "0.5", "0.123"], "--library-alphas: 0.123 not in data/library"),
     (["--samplers", "nearest_alpha", "--library-alphas", "1.0"], "--library-alphas: holds the searched α 1"),
+    (["--samplers", "uniform", "--library-alphas", "0.5"], "--library-alphas: no sampler of uniform draws on the"),
 ])
 def test_the_global_search_command_refuses_bad_input_in_one_line(args, says, tmp_path):
     import subprocess

@@ -107,6 +107,8 @@ class GlobalStudy:
             raise InputError("--searches and --budget must be positive")
         if self.library_alphas is not None and alpha_label(self.alpha) in map(alpha_label, self.library_alphas):
             raise InputError(f"--library-alphas: holds the searched α {self.alpha:g} (reuse must not see the answer)")
+        if self.library_alphas is not None and not any(get_arm(s).high_quality for s in self.samplers):
+            raise InputError(f"--library-alphas: no sampler of {', '.join(self.samplers)} draws on the library")
 
 
 def library_rows(library_dir: str, alpha: float) -> pd.DataFrame:
