@@ -94,7 +94,7 @@ def dense_history(x: np.ndarray, alpha: float, initial_state, terminal_state,
     """
     from scipy.integrate import solve_ivp
 
-    from amorgs.problems.cr3bp.dynamics import powered_rhs
+    from amorgs.problems.cr3bp.dynamics import constant_thrust_rhs
     from amorgs.problems.cr3bp.propagation import propagate
 
     x = np.asarray(x, float)
@@ -120,8 +120,8 @@ def dense_history(x: np.ndarray, alpha: float, initial_state, terminal_state,
             thrust = np.zeros(3)
         start = s_nodes[b - 1] if backward else s_nodes[a]
         span = (0.0, -duration) if backward else (0.0, duration)
-        sol = solve_ivp(powered_rhs, span, start, method="DOP853", rtol=PROPAGATE_TOL, atol=PROPAGATE_TOL,
-                        args=(thrust, mdot_per_thrust), dense_output=True)
+        sol = solve_ivp(constant_thrust_rhs(thrust, mdot_per_thrust), span, start, method="DOP853",
+                        rtol=PROPAGATE_TOL, atol=PROPAGATE_TOL, dense_output=True)
         if not sol.success:
             raise FloatingPointError(sol.message)
         steps = (t1 + sol.t) if backward else (t0 + sol.t)

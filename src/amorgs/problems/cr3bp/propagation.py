@@ -14,7 +14,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from amorgs.problems.cr3bp import constants as K
-from amorgs.problems.cr3bp.dynamics import ballistic_rhs, powered_rhs
+from amorgs.problems.cr3bp.dynamics import constant_thrust_rhs
 
 VERIFY_RTOL = 1e-12
 VERIFY_ATOL = 1e-12
@@ -35,13 +35,12 @@ def _arc(state, duration, thrust_vec_nd, mdot_per_thrust, dense, rtol, atol):
     if duration == 0.0:
         return np.array([0.0]), state[:, None]
     sol = solve_ivp(
-        powered_rhs,
+        constant_thrust_rhs(thrust_vec_nd, mdot_per_thrust),
         (0.0, duration),
         state,
         method="DOP853",
         rtol=rtol,
         atol=atol,
-        args=(thrust_vec_nd, mdot_per_thrust),
         dense_output=False,
         t_eval=np.linspace(0.0, duration, 40) if dense else None,
     )
