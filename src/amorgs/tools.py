@@ -229,9 +229,16 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     import shlex
     import shutil
 
-    from amorgs.ablation.global_study import CHECKPOINT_DIR, GlobalStudy, compare, run_study
+    from amorgs.ablation.global_study import (
+        CHECKPOINT_DIR,
+        GlobalStudy,
+        compare,
+        finished_searches,
+        inputs_identity,
+        run_study,
+    )
     from amorgs.certification import record_entry, under_reference
-    from amorgs.data.io import atomic_path, check_writable_folder, write_parquet
+    from amorgs.data.io import atomic_path, check_writable_folder, read_json, write_parquet
     from amorgs.errors import InputError
     from amorgs.figures.global_search import fig_runtime_ecdf
     from amorgs.reference import export_global_study
@@ -249,6 +256,8 @@ def cmd_global_search(args: argparse.Namespace) -> None:
                         searches=args.searches, budget=args.budget, seed=args.seed, hops=hops, deltas=tuple(args.deltas),
                         solver=IpoptOptions(max_iter=args.max_iter), library_dir=args.library_dir, models_dir=args.models_dir,
                         library_alphas=tuple(args.library_alphas) if args.library_alphas else None)
+    if args.from_events and args.extend:
+        raise InputError("--from-events and --extend: choose one (--extend solves the new cells)")
     if args.from_events:
         import pandas as pd
 
@@ -260,8 +269,11 @@ def cmd_global_search(args: argparse.Namespace) -> None:
             raise InputError(f"--from-events {source}: no {' or '.join(missing)} (a finished global-search --dest)")
         tables = summarize(study, pd.read_parquet(source / "events.parquet"),
                            pd.read_parquet(source / "solutions.parquet"))
+        inputs = read_json(source / "study.json").get("inputs") if (source / "study.json").is_file() else None
     else:  # each finished search is kept in dest/.searches until events.parquet holds it: a rerun resumes
-        tables = run_study(study, args.workers, checkpoint=dest / CHECKPOINT_DIR)
+        finished = finished_searches(dest, study) if args.extend else None
+        tables = run_study(study, args.workers, checkpoint=dest / CHECKPOINT_DIR, finished=finished)
+        inputs = inputs_identity(study)
     for name in ("events", "solutions"):
         write_parquet(tables[name], dest / f"{name}.parquet")
     if not args.from_events:
@@ -270,7 +282,8 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     texts = {f"{name}.csv": tables[name].to_csv(index=False)
              for name in ("runtime_to_target", "runtime_ecdf", "ert_ratios", "ert_pairs", "distinct", "best_known")}
     texts["runtime_to_target.md"] = readable.to_markdown() + "\n"
-    texts["study.json"] = json.dumps(study.summary(), indent=1, sort_keys=True) + "\n"
+    texts["study.json"] = json.dumps({**study.summary(), **({"inputs": inputs} if inputs else {})}, indent=1,
+                                     sort_keys=True) + "\n"
     for name, text in texts.items():
         with atomic_path(dest / name) as tmp:
             tmp.write_text(text)
@@ -630,6 +643,10 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--from-events", default=None, metavar="DIR",
                    help="no solves: recompute the tables and the figure from a finished study's events.parquet and "
                         "solutions.parquet in DIR (with this code's statistics)")
+    p.add_argument("--extend", action="store_true",
+                   help="DEST holds a finished study of these settings with fewer cells (same library manifest and "
+                        "model files, its study.json's inputs): keep its searches, solve only the new cells' and "
+                        "rewrite the tables of all (a study split over sessions)")
     p.set_defaults(func=cmd_global_search)
 
     p = sub.add_parser("ui", help="open the MLflow UI on results/mlflow")

@@ -416,8 +416,8 @@ def test_a_global_search_is_a_certifiable_reference(tmp_path):
 
 def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tables(tmp_path):
     """Each finished search is saved at once (dest/.searches); a rerun of the same study solves only the searches
-    that are missing and gives the same events bit for bit; a study of other settings or another library, or a
-    folder that does not say whose searches it holds, is refused."""
+    that are missing and gives the same events bit for bit, and a run with fewer cells keeps theirs; a study of
+    other settings or another library, or a folder that does not say whose searches it holds, is refused."""
     from amorgs.ablation.global_study import GlobalStudy, run_study
     from amorgs.errors import InputError
     from amorgs.solvers.options import IpoptOptions
@@ -437,6 +437,12 @@ def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tabl
     assert lines[0] == f"global-search: 3 of 4 searches resumed from {folder}" and len(lines) == 2
     pd.testing.assert_frame_equal(again["events"], full["events"], check_exact=True)
     pd.testing.assert_frame_equal(again["solutions"], full["solutions"], check_exact=True)
+    lines.clear()  # other cells are the same study: the searches of the cells it shares are kept, none solved
+    part = run_study(GlobalStudy(**{**study.__dict__, "strategies": ("multistart",)}), checkpoint=folder,
+                     report=lines.append)
+    assert lines == [f"global-search: 2 of 2 searches resumed from {folder}"]
+    pd.testing.assert_frame_equal(part["events"], full["events"][full["events"]["strategy"] == "multistart"]
+                                  .reset_index(drop=True), check_exact=True)
     for other in ({"budget": 400}, {"library_dir": str(tmp_path / "another-library")}):  # settings, or the pools
         with pytest.raises(InputError, match=r"\.searches: holds the searches of a study with other settings"):
             run_study(GlobalStudy(**{**study.__dict__, **other}), checkpoint=folder, report=lines.append)
@@ -503,3 +509,39 @@ def test_a_multistart_from_the_selector_is_solved_once_for_every_seed(tmp_path, 
             pd.testing.assert_frame_equal(cell_table, table, check_exact=True)
     finally:
         _WORKER.clear()
+
+
+def test_a_study_split_over_sessions_extends_its_finished_cells_to_the_tables_of_one_run(tmp_path):
+    """``amorgs global-search --extend``: a finished study of some cells, extended with more, solves only the new
+    cells' searches and writes the tables of a study that ran them all at once (the same events, solutions and
+    ratios, bit for bit); a study.json records the inputs it drew on; a study of other settings, one that drops a
+    held cell or a folder without a finished study is refused in one line, naming what differs."""
+    import json
+    import subprocess
+    import sys
+
+    def search(dest, *args):
+        cmd = [sys.executable, "-m", "amorgs", "global-search", "--alpha", "1.0", "--strategies", "multistart",
+               "--searches", "2", "--budget", "300", "--max-iter", "150", "--deltas", "50", "--dest", str(dest), *args]
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+
+    both = ["--samplers", "uniform", "nearest_alpha"]
+    assert search(tmp_path / "once", *both).returncode == 0
+    assert search(tmp_path / "split", "--samplers", "uniform").returncode == 0
+    out = search(tmp_path / "split", *both, "--extend")
+    assert out.returncode == 0, out.stderr
+    assert "global-search: 2 of 4 searches kept from the finished study" in out.stderr
+    assert sum("searches (multistart × uniform" in line for line in out.stderr.splitlines()) == 0  # none solved
+    for name in ("events.parquet", "solutions.parquet"):
+        pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "split" / name),
+                                      pd.read_parquet(tmp_path / "once" / name), check_exact=True)
+    for name in ("runtime_to_target.csv", "ert_ratios.csv", "ert_pairs.csv", "distinct.csv", "study.json"):
+        assert (tmp_path / "split" / name).read_text() == (tmp_path / "once" / name).read_text(), name
+    study = json.loads((tmp_path / "once" / "study.json").read_text())
+    assert set(study["inputs"]) == {"library_manifest_sha256", "models_sha256"} and study["inputs"]["models_sha256"] == {}
+    for args, says in [([*both, "--budget", "400"], "its study.json differs in budget (only the cells may change)"),
+                       (["--samplers", "nearest_alpha"], "holds the cells multistart × uniform, which"),
+                       ([*both, "--dest", str(tmp_path / "empty")], "no events.parquet, solutions.parquet, study.json")]:
+        refused = search(tmp_path / "split", *args, "--extend")
+        assert refused.returncode != 0 and says in refused.stderr, refused.stderr
+        assert len(refused.stderr.strip().splitlines()) <= 2

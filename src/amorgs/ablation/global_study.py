@@ -195,20 +195,65 @@ def certifiable_starts(events: pd.DataFrame, study: GlobalStudy) -> pd.DataFrame
 #: per search: its event rows and feasible solutions) — an interrupted study resumes from it, and the command
 #: removes it once the tables are written.
 CHECKPOINT_DIR = ".searches"
+#: The settings that name a study's cells.  A search depends on its cell, its index and the rest of the study's
+#: identity alone, so a study run again with other cells — resumed from a checkpoint, or extending a finished
+#: study (:func:`finished_searches`) — keeps the searches of the cells the two share.
+CELL_KEYS = ("samplers", "strategies")
 
 
-def _identity(study: GlobalStudy) -> dict:
-    """What a checkpoint's searches must share with the study that resumes them: every setting of the searches
-    (:meth:`GlobalStudy.summary`), β, and the contents of what the samplers draw on — the SHA-256 of the
-    library's manifest (a library that grew between the runs gives other pools) and of every file in the models
-    folder."""
+def inputs_identity(study: GlobalStudy) -> dict:
+    """The contents of what the samplers draw on: the SHA-256 of the library's manifest (a library that grew
+    between two runs gives other pools) and of every file in the models folder (recorded in ``study.json`` as
+    ``inputs``: what a study that extends this one must draw on too)."""
     from amorgs.data.library import MANIFEST, sha256_file
 
     manifest = Path(study.library_dir) / "cr3bp" / MANIFEST
     models = sorted(p for p in Path(study.models_dir).iterdir() if p.is_file()) if study.models_dir else []
-    return {**study.summary(), "min_final_mass_kg": study.min_final_mass_kg, "library_dir": study.library_dir,
-            "library_manifest_sha256": sha256_file(manifest) if manifest.is_file() else None,
-            "models_dir": study.models_dir, "models_sha256": {p.name: sha256_file(p) for p in models}}
+    return {"library_manifest_sha256": sha256_file(manifest) if manifest.is_file() else None,
+            "models_sha256": {p.name: sha256_file(p) for p in models}}
+
+
+def _without_cells(settings: dict) -> dict:
+    return {k: v for k, v in settings.items() if k not in CELL_KEYS}
+
+
+def _identity(study: GlobalStudy) -> dict:
+    """What a checkpoint's searches must share with the study that resumes them: every setting of the searches
+    but the cells (:meth:`GlobalStudy.summary` less :data:`CELL_KEYS`), β, and :func:`inputs_identity`."""
+    return {**_without_cells(study.summary()), "min_final_mass_kg": study.min_final_mass_kg,
+            "library_dir": study.library_dir, "models_dir": study.models_dir, **inputs_identity(study)}
+
+
+def finished_searches(dest: str | Path, study: GlobalStudy) -> dict[tuple[str, str, int], tuple[list, list]]:
+    """The searches of the finished study in ``dest`` (its ``events.parquet``, ``solutions.parquet`` and
+    ``study.json``), keyed (strategy, sampler, search), for ``study`` to keep instead of solving them again: the
+    same settings but the cells, the same :func:`inputs_identity`, and no cell that ``study`` leaves out.
+    ``InputError`` naming the file or the setting otherwise."""
+    from amorgs.data.io import read_json
+
+    dest = Path(dest)
+    missing = [n for n in ("events.parquet", "solutions.parquet", "study.json") if not (dest / n).is_file()]
+    if missing:
+        raise InputError(f"--extend {dest}: no {', '.join(missing)} (a finished global-search --dest)")
+    held = read_json(dest / "study.json")
+    want = json.loads(json.dumps(_without_cells(study.summary())))
+    differ = sorted(k for k in (set(want) | set(_without_cells(held))) - {"inputs"} if held.get(k) != want.get(k))
+    if differ:
+        raise InputError(f"--extend {dest}: its study.json differs in {', '.join(differ)} (only the cells may change)")
+    if held.get("inputs") != json.loads(json.dumps(inputs_identity(study))):
+        raise InputError(f"--extend {dest}: its study.json records "
+                         + ("no inputs (a study before they were recorded)" if "inputs" not in held else
+                            "other inputs") + "; the library manifest and every model file must be the same bytes")
+    events = pd.read_parquet(dest / "events.parquet")
+    solutions = pd.read_parquet(dest / "solutions.parquet")
+    cells = {(c.strategy, c.sampler) for c in study.cells()}
+    dropped = sorted(set(zip(events["strategy"], events["sampler"])) - cells)
+    if dropped:
+        raise InputError(f"--extend {dest}: holds the cells {', '.join(' × '.join(c) for c in dropped)}, which "
+                         "--strategies/--samplers leave out (name them too)")
+    keys = ["strategy", "sampler", "search"]
+    sols = {k: g.to_dict("records") for k, g in solutions.groupby(keys, sort=False)} if len(solutions) else {}
+    return {k: (g.to_dict("records"), sols.get(k, [])) for k, g in events.groupby(keys, sort=False)}
 
 
 def _search_file(folder: Path, cell: Cell, r: int) -> Path:
@@ -223,8 +268,8 @@ def _open_checkpoint(folder: Path, study: GlobalStudy) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     marker = folder / "study.json"
     want = json.loads(json.dumps(_identity(study)))
-    if marker.is_file():
-        if json.loads(marker.read_text()) != want:
+    if marker.is_file():  # a marker written before the cells left the identity still names them: not compared
+        if _without_cells(json.loads(marker.read_text())) != want:
             raise InputError(f"{folder}: holds the searches of a study with other settings, library or models (its "
                              "study.json); delete it or choose another --dest")
         return
@@ -271,7 +316,8 @@ def _same_searches(tasks: list[tuple[Cell, int]]) -> dict[int, int]:
 
 
 def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | None = None,
-              report: Callable[[str], None] | None = None) -> dict[str, pd.DataFrame]:
+              report: Callable[[str], None] | None = None,
+              finished: dict[tuple[str, str, int], tuple[list, list]] | None = None) -> dict[str, pd.DataFrame]:
     """Run every search of every cell on ``workers`` spawned processes (each builds its own solver and samplers;
     results do not depend on the number of workers) and compute the study's tables: ``events``, ``solutions``,
     ``runtime_to_target``, ``runtime_ecdf``, ``ert_ratios``, ``ert_pairs``
@@ -280,7 +326,9 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
     already saved by an interrupted run of the same study are not solved again (the same tables as an
     uninterrupted run: every search is seeded on its own).  A multi-start from a sampler that ignores the seed
     (the selector's one ranking) is solved once, its search 0 copied to the others (:func:`_same_searches`: the
-    same tables as solving each).  ``report`` receives a line per finished search (default: standard error)."""
+    same tables as solving each).  ``finished`` (:func:`finished_searches`) holds searches of a finished study of
+    the same settings, kept as they are (the same tables as solving them again).  ``report`` receives a line per
+    finished search (default: standard error)."""
     study.check()
     hq, train = training_high_quality(study)  # a library α it lacks is refused before the checkpoint is made
     say = report or (lambda line: print(line, file=sys.stderr, flush=True))
@@ -291,12 +339,17 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
     folder = Path(checkpoint) if checkpoint is not None else None
     results: dict[int, tuple[list[dict], list[dict]]] = {}
     total = len(tasks) - len(copies)
+    if finished:
+        results = {i: finished[(cell.strategy, cell.sampler, r)] for i, (cell, r) in enumerate(tasks)
+                   if i not in copies and (cell.strategy, cell.sampler, r) in finished}
+        say(f"global-search: {len(results)} of {total} searches kept from the finished study")
     if folder is not None:
         _open_checkpoint(folder, study)
-        results = {i: _load_search(_search_file(folder, *t)) for i, t in enumerate(tasks)
-                   if i not in copies and _search_file(folder, *t).is_file()}
-        if results:
-            say(f"global-search: {len(results)} of {total} searches resumed from {folder}")
+        saved = {i: _load_search(_search_file(folder, *t)) for i, t in enumerate(tasks)
+                 if i not in copies and i not in results and _search_file(folder, *t).is_file()}
+        if saved:
+            say(f"global-search: {len(saved)} of {total} searches resumed from {folder}")
+        results.update(saved)
     pending = [i for i in range(len(tasks)) if i not in results and i not in copies]
     started, resumed = time.monotonic(), len(results)
 
