@@ -227,15 +227,16 @@ def cmd_global_search(args: argparse.Namespace) -> None:
     from pathlib import Path
 
     import shlex
-    import shutil
 
     from amorgs.ablation.global_study import (
         CHECKPOINT_DIR,
         GlobalStudy,
+        clear_checkpoint,
         compare,
         finished_searches,
         inputs_identity,
         run_study,
+        without_cells,
     )
     from amorgs.certification import record_entry, under_reference
     from amorgs.data.io import atomic_path, check_writable_folder, read_json, write_parquet
@@ -269,15 +270,21 @@ def cmd_global_search(args: argparse.Namespace) -> None:
             raise InputError(f"--from-events {source}: no {' or '.join(missing)} (a finished global-search --dest)")
         tables = summarize(study, pd.read_parquet(source / "events.parquet"),
                            pd.read_parquet(source / "solutions.parquet"))
-        inputs = read_json(source / "study.json").get("inputs") if (source / "study.json").is_file() else None
+        held = read_json(source / "study.json") if (source / "study.json").is_file() else {}
+        settings = {k: v for k, v in without_cells(held).items() if k != "inputs"}
+        same = settings == without_cells(json.loads(json.dumps(study.summary())))
+        inputs = held.get("inputs") if same else None  # only what these settings' searches drew on
     else:  # each finished search is kept in dest/.searches until events.parquet holds it: a rerun resumes
+        study.check()
         finished = finished_searches(dest, study) if args.extend else None
         tables = run_study(study, args.workers, checkpoint=dest / CHECKPOINT_DIR, finished=finished)
         inputs = inputs_identity(study)
     for name in ("events", "solutions"):
         write_parquet(tables[name], dest / f"{name}.parquet")
-    if not args.from_events:
-        shutil.rmtree(dest / CHECKPOINT_DIR)  # its searches are in events.parquet now; not part of the reference
+    if not args.from_events:  # its searches are in events.parquet now; not part of the reference
+        left = clear_checkpoint(dest / CHECKPOINT_DIR, study)
+        if left:
+            print(f"{dest / CHECKPOINT_DIR}: {left} searches of other cells kept for a later run", file=sys.stderr)
     readable = compare(tables["runtime_to_target"])
     texts = {f"{name}.csv": tables[name].to_csv(index=False)
              for name in ("runtime_to_target", "runtime_ecdf", "ert_ratios", "ert_pairs", "distinct", "best_known")}

@@ -418,7 +418,7 @@ def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tabl
     """Each finished search is saved at once (dest/.searches); a rerun of the same study solves only the searches
     that are missing and gives the same events bit for bit, and a run with fewer cells keeps theirs; a study of
     other settings or another library, or a folder that does not say whose searches it holds, is refused."""
-    from amorgs.ablation.global_study import GlobalStudy, run_study
+    from amorgs.ablation.global_study import GlobalStudy, clear_checkpoint, run_study
     from amorgs.errors import InputError
     from amorgs.solvers.options import IpoptOptions
 
@@ -443,6 +443,9 @@ def test_an_interrupted_study_resumes_from_its_saved_searches_with_the_same_tabl
     assert lines == [f"global-search: 2 of 2 searches resumed from {folder}"]
     pd.testing.assert_frame_equal(part["events"], full["events"][full["events"]["strategy"] == "multistart"]
                                   .reset_index(drop=True), check_exact=True)
+    # its tables written, the run clears its own searches and leaves the other cells' for a later run
+    assert clear_checkpoint(folder, GlobalStudy(**{**study.__dict__, "strategies": ("multistart",)})) == 2
+    assert sorted(p.name for p in folder.glob("*--*.json")) == ["mbh--uniform--0000.json", "mbh--uniform--0001.json"]
     for other in ({"budget": 400}, {"library_dir": str(tmp_path / "another-library")}):  # settings, or the pools
         with pytest.raises(InputError, match=r"\.searches: holds the searches of a study with other settings"):
             run_study(GlobalStudy(**{**study.__dict__, **other}), checkpoint=folder, report=lines.append)
@@ -545,3 +548,27 @@ def test_a_study_split_over_sessions_extends_its_finished_cells_to_the_tables_of
         refused = search(tmp_path / "split", *args, "--extend")
         assert refused.returncode != 0 and says in refused.stderr, refused.stderr
         assert len(refused.stderr.strip().splitlines()) <= 2
+
+
+def test_an_extension_that_adds_the_library_samplers_may_name_the_library_alphas(tmp_path):
+    """A study whose first cells draw on no library (``--library-alphas`` is refused there) is extended by
+    reuse cells that name a sparse design's α: accepted; a held study whose reuse drew on every library α is not
+    extended by one that names other α."""
+    import json
+
+    from amorgs.ablation.global_study import GlobalStudy, finished_searches, inputs_identity
+    from amorgs.errors import InputError
+
+    first = GlobalStudy(alpha=1.0, samplers=("uniform",), strategies=("multistart",), searches=1)
+    row = {"sampler": "uniform", "strategy": "multistart", "alpha": 1.0, "search": 0, "solve": 0, "iterations": 5}
+    pd.DataFrame([row]).to_parquet(tmp_path / "events.parquet")
+    pd.DataFrame().to_parquet(tmp_path / "solutions.parquet")
+    (tmp_path / "study.json").write_text(json.dumps({**first.summary(), "inputs": inputs_identity(first)}))
+    later = GlobalStudy(alpha=1.0, samplers=("uniform", "nearest_alpha"), strategies=("multistart",), searches=1,
+                        library_alphas=(0.5, 0.8))
+    kept = finished_searches(tmp_path, later)
+    assert list(kept) == [("multistart", "uniform", 0)] and kept[("multistart", "uniform", 0)][1] == []
+    held = GlobalStudy(alpha=1.0, samplers=("uniform", "nearest_alpha"), strategies=("multistart",), searches=1)
+    (tmp_path / "study.json").write_text(json.dumps({**held.summary(), "inputs": inputs_identity(held)}))
+    with pytest.raises(InputError, match=r"its study\.json differs in library_alphas"):
+        finished_searches(tmp_path, later)

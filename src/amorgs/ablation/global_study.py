@@ -203,32 +203,37 @@ CELL_KEYS = ("samplers", "strategies")
 
 def inputs_identity(study: GlobalStudy) -> dict:
     """The contents of what the samplers draw on: the SHA-256 of the library's manifest (a library that grew
-    between two runs gives other pools) and of every file in the models folder (recorded in ``study.json`` as
-    ``inputs``: what a study that extends this one must draw on too)."""
+    between two runs gives other pools) and of every file in the models folder but its Markdown notes (recorded in
+    ``study.json`` as ``inputs``: what a study that extends this one must draw on too)."""
     from amorgs.data.library import MANIFEST, sha256_file
 
     manifest = Path(study.library_dir) / "cr3bp" / MANIFEST
-    models = sorted(p for p in Path(study.models_dir).iterdir() if p.is_file()) if study.models_dir else []
+    if study.models_dir and not Path(study.models_dir).is_dir():
+        raise InputError(f"--models-dir {study.models_dir}: no such folder")
+    models = sorted(p for p in Path(study.models_dir).iterdir() if p.is_file() and p.suffix != ".md") \
+        if study.models_dir else []
     return {"library_manifest_sha256": sha256_file(manifest) if manifest.is_file() else None,
             "models_sha256": {p.name: sha256_file(p) for p in models}}
 
 
-def _without_cells(settings: dict) -> dict:
+def without_cells(settings: dict) -> dict:
+    """A study's settings (``study.json``, :meth:`GlobalStudy.summary`) less :data:`CELL_KEYS`."""
     return {k: v for k, v in settings.items() if k not in CELL_KEYS}
 
 
 def _identity(study: GlobalStudy) -> dict:
     """What a checkpoint's searches must share with the study that resumes them: every setting of the searches
     but the cells (:meth:`GlobalStudy.summary` less :data:`CELL_KEYS`), β, and :func:`inputs_identity`."""
-    return {**_without_cells(study.summary()), "min_final_mass_kg": study.min_final_mass_kg,
+    return {**without_cells(study.summary()), "min_final_mass_kg": study.min_final_mass_kg,
             "library_dir": study.library_dir, "models_dir": study.models_dir, **inputs_identity(study)}
 
 
 def finished_searches(dest: str | Path, study: GlobalStudy) -> dict[tuple[str, str, int], tuple[list, list]]:
     """The searches of the finished study in ``dest`` (its ``events.parquet``, ``solutions.parquet`` and
     ``study.json``), keyed (strategy, sampler, search), for ``study`` to keep instead of solving them again: the
-    same settings but the cells, the same :func:`inputs_identity`, and no cell that ``study`` leaves out.
-    ``InputError`` naming the file or the setting otherwise."""
+    same settings but the cells (``library_alphas`` aside where none of its samplers drew on the library), the
+    same :func:`inputs_identity`, and no cell that ``study`` leaves out.  ``InputError`` naming the file or the
+    setting otherwise."""
     from amorgs.data.io import read_json
 
     dest = Path(dest)
@@ -236,8 +241,9 @@ def finished_searches(dest: str | Path, study: GlobalStudy) -> dict[tuple[str, s
     if missing:
         raise InputError(f"--extend {dest}: no {', '.join(missing)} (a finished global-search --dest)")
     held = read_json(dest / "study.json")
-    want = json.loads(json.dumps(_without_cells(study.summary())))
-    differ = sorted(k for k in (set(want) | set(_without_cells(held))) - {"inputs"} if held.get(k) != want.get(k))
+    want = json.loads(json.dumps(without_cells(study.summary())))
+    unread = {"inputs"} | (set() if any(get_arm(s).high_quality for s in held.get("samplers", [])) else {"library_alphas"})
+    differ = sorted(k for k in (set(want) | set(without_cells(held))) - unread if held.get(k) != want.get(k))
     if differ:
         raise InputError(f"--extend {dest}: its study.json differs in {', '.join(differ)} (only the cells may change)")
     if held.get("inputs") != json.loads(json.dumps(inputs_identity(study))):
@@ -246,6 +252,8 @@ def finished_searches(dest: str | Path, study: GlobalStudy) -> dict[tuple[str, s
                             "other inputs") + "; the library manifest and every model file must be the same bytes")
     events = pd.read_parquet(dest / "events.parquet")
     solutions = pd.read_parquet(dest / "solutions.parquet")
+    if not len(events):
+        return {}
     cells = {(c.strategy, c.sampler) for c in study.cells()}
     dropped = sorted(set(zip(events["strategy"], events["sampler"])) - cells)
     if dropped:
@@ -260,6 +268,22 @@ def _search_file(folder: Path, cell: Cell, r: int) -> Path:
     return folder / f"{cell.strategy}--{cell.sampler}--{r:04d}.json"
 
 
+def clear_checkpoint(folder: str | Path, study: GlobalStudy) -> int:
+    """Remove ``study``'s searches from the checkpoint ``folder`` once its tables hold them, and the folder when
+    nothing else is left in it; the searches of other cells (a study resumed with fewer cells) stay for a later
+    run.  Returns how many stay."""
+    import shutil
+
+    folder = Path(folder)
+    for cell in study.cells():
+        for r in range(cell.searches):
+            _search_file(folder, cell, r).unlink(missing_ok=True)
+    left = len(list(folder.glob("*--*.json")))
+    if not left:
+        shutil.rmtree(folder)
+    return left
+
+
 def _open_checkpoint(folder: Path, study: GlobalStudy) -> None:
     """Create ``folder`` for ``study``'s searches, or check that the searches already in it are this study's
     (``InputError`` naming the folder otherwise: a search of other settings must not join these tables)."""
@@ -269,7 +293,7 @@ def _open_checkpoint(folder: Path, study: GlobalStudy) -> None:
     marker = folder / "study.json"
     want = json.loads(json.dumps(_identity(study)))
     if marker.is_file():  # a marker written before the cells left the identity still names them: not compared
-        if _without_cells(json.loads(marker.read_text())) != want:
+        if without_cells(json.loads(marker.read_text())) != want:
             raise InputError(f"{folder}: holds the searches of a study with other settings, library or models (its "
                              "study.json); delete it or choose another --dest")
         return
@@ -339,21 +363,21 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
     folder = Path(checkpoint) if checkpoint is not None else None
     results: dict[int, tuple[list[dict], list[dict]]] = {}
     total = len(tasks) - len(copies)
-    if finished:
-        results = {i: finished[(cell.strategy, cell.sampler, r)] for i, (cell, r) in enumerate(tasks)
-                   if i not in copies and (cell.strategy, cell.sampler, r) in finished}
-        say(f"global-search: {len(results)} of {total} searches kept from the finished study")
-    if folder is not None:
+    if folder is not None:  # first: a search saved here is newer than the finished study's tables
         _open_checkpoint(folder, study)
-        saved = {i: _load_search(_search_file(folder, *t)) for i, t in enumerate(tasks)
-                 if i not in copies and i not in results and _search_file(folder, *t).is_file()}
-        if saved:
-            say(f"global-search: {len(saved)} of {total} searches resumed from {folder}")
-        results.update(saved)
+        results = {i: _load_search(_search_file(folder, *t)) for i, t in enumerate(tasks)
+                   if i not in copies and _search_file(folder, *t).is_file()}
+        if results:
+            say(f"global-search: {len(results)} of {total} searches resumed from {folder}")
+    if finished:
+        kept = {i: finished[(cell.strategy, cell.sampler, r)] for i, (cell, r) in enumerate(tasks)
+                if i not in copies and i not in results and (cell.strategy, cell.sampler, r) in finished}
+        say(f"global-search: {len(kept)} of {total} searches kept from the finished study")
+        results.update(kept)
     pending = [i for i in range(len(tasks)) if i not in results and i not in copies]
     started, resumed = time.monotonic(), len(results)
 
-    def finished(i: int, result: tuple[list[dict], list[dict]]) -> None:
+    def done(i: int, result: tuple[list[dict], list[dict]]) -> None:
         if folder is not None:
             _save_search(_search_file(folder, *tasks[i]), result)
         results[i] = result
@@ -365,19 +389,19 @@ def run_study(study: GlobalStudy, workers: int = 1, checkpoint: str | Path | Non
     if workers <= 1 and pending:
         _init_worker(study, hq, train)
         for i in pending:
-            finished(i, _search_task(tasks[i]))
+            done(i, _search_task(tasks[i]))
     elif pending:
         with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker,
                                  initargs=(study, hq, train)) as pool:
             futures = {pool.submit(_search_task, tasks[i]): i for i in pending}
             try:
                 for future in as_completed(futures):
-                    finished(futures[future], future.result())
+                    done(futures[future], future.result())
             except BaseException:  # a search raised (or Ctrl-C): keep what finished, start nothing more
                 pool.shutdown(wait=False, cancel_futures=True)
                 for future, i in futures.items():
                     if i not in results and future.done() and not future.cancelled() and future.exception() is None:
-                        finished(i, future.result())
+                        done(i, future.result())
                 raise
     for i, j in copies.items():
         results[i] = as_search(results[j], tasks[i][1])

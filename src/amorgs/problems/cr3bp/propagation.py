@@ -88,7 +88,7 @@ def independent_defect(x, alpha, initial_state, terminal_state) -> float:
     """Max-abs re-propagated match defect in (DU, VU, kg/1000); ``inf`` if the integration fails."""
     try:
         d = match_defect(x, alpha, initial_state, terminal_state)
-    except (FloatingPointError, ValueError):
+    except (ArithmeticError, ValueError):  # a step through a primary (division by zero) or an overflow
         return float("inf")
     return float(np.max(np.abs(d))) if np.all(np.isfinite(d)) else float("inf")
 
