@@ -541,10 +541,12 @@ def test_a_study_split_over_sessions_extends_its_finished_cells_to_the_tables_of
     for name in ("runtime_to_target.csv", "ert_ratios.csv", "ert_pairs.csv", "distinct.csv", "study.json"):
         assert (tmp_path / "split" / name).read_text() == (tmp_path / "once" / name).read_text(), name
     study = json.loads((tmp_path / "once" / "study.json").read_text())
-    assert set(study["inputs"]) == {"library_manifest_sha256", "models_sha256"} and study["inputs"]["models_sha256"] == {}
+    assert set(study["inputs"]) == {"library_manifest_sha256", "models_sha256"}
+    assert study["inputs"]["models_sha256"] == {}
     for args, says in [([*both, "--budget", "400"], "its study.json differs in budget (only the cells may change)"),
                        (["--samplers", "nearest_alpha"], "holds the cells multistart × uniform, which"),
-                       ([*both, "--dest", str(tmp_path / "empty")], "no events.parquet, solutions.parquet, study.json")]:
+                       ([*both, "--dest", str(tmp_path / "empty")],
+                        "no events.parquet, solutions.parquet, study.json")]:
         refused = search(tmp_path / "split", *args, "--extend")
         assert refused.returncode != 0 and says in refused.stderr, refused.stderr
         assert len(refused.stderr.strip().splitlines()) <= 2

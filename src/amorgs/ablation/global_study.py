@@ -242,7 +242,8 @@ def finished_searches(dest: str | Path, study: GlobalStudy) -> dict[tuple[str, s
         raise InputError(f"--extend {dest}: no {', '.join(missing)} (a finished global-search --dest)")
     held = read_json(dest / "study.json")
     want = json.loads(json.dumps(without_cells(study.summary())))
-    unread = {"inputs"} | (set() if any(get_arm(s).high_quality for s in held.get("samplers", [])) else {"library_alphas"})
+    drew_on_library = any(get_arm(s).high_quality for s in held.get("samplers", []))
+    unread = {"inputs"} | (set() if drew_on_library else {"library_alphas"})
     differ = sorted(k for k in (set(want) | set(without_cells(held))) - unread if held.get(k) != want.get(k))
     if differ:
         raise InputError(f"--extend {dest}: its study.json differs in {', '.join(differ)} (only the cells may change)")
