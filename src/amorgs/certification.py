@@ -310,10 +310,13 @@ def references_under(root: str | Path) -> list[Path]:
     return sorted(p.parent for p in Path(root).rglob("provenance.json"))
 
 
-def certify_all(repo: str | Path = ".", sample: int = 3, seed: int = 0, workers: int = 1) -> list[dict]:
+def certify_all(repo: str | Path = ".", sample: int = 3, seed: int = 0, workers: int = 1,
+                skip_unsupported_cpu: bool = False) -> list[dict]:
     """Certify every committed reference by its route (:data:`REGISTRY`); one result per reference:
     ``{"reference", "route", "ok", "line"}`` (and ``certificate``).  A reference missing from the registry,
-    one whose fingerprint moved, or a re-solve that differs is not ok."""
+    one whose fingerprint moved, or a re-solve that differs is not ok.  A ``commit`` route pinned to a BLAS kernel
+    set this CPU cannot run (:func:`~amorgs.checkout.check_blas_core`) is not ok either, unless
+    ``skip_unsupported_cpu``: then it is ``skipped`` (ok, and the line says why) — this machine cannot tell."""
     root = repository_root(repo)
     registry = read_registry(root)["references"]
     results = []
@@ -328,6 +331,14 @@ def certify_all(repo: str | Path = ".", sample: int = 3, seed: int = 0, workers:
             results.append({"reference": name, "route": "historical", "ok": True,
                             "line": f"historical, not certified: {entry.get('why', '')}"})
             continue
+        if entry["route"] == "commit" and entry.get("blas_core"):
+            try:
+                check_blas_core(entry["blas_core"])
+            except InputError as exc:
+                results.append({"reference": name, "route": "commit", "ok": skip_unsupported_cpu,
+                                "skipped": skip_unsupported_cpu,
+                                "line": f"not checked on this CPU: {exc}" if skip_unsupported_cpu else str(exc)})
+                continue
         try:
             cert = certify_reference(dest, sample, seed, workers,
                                      at_commit="recorded" if entry["route"] == "commit" else None)

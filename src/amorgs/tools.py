@@ -380,13 +380,20 @@ def cmd_reference_certify(args: argparse.Namespace) -> None:
     if args.all:
         if args.reference or args.at_commit or args.record or args.blas_core:
             raise SystemExit("amorgs reference-certify --all: takes no reference, --at-commit, --blas-core or --record")
-        failed = 0
-        for r in certify_all(".", args.sample, args.seed, args.workers):
+        failed = skipped = 0
+        for r in certify_all(".", args.sample, args.seed, args.workers, args.skip_unsupported_cpu):
             failed += not r["ok"]
-            print(f"{'ok  ' if r['ok'] else 'FAIL'} reference/{r['reference']} [{r['route']}]: {r['line']}", flush=True)
+            skipped += bool(r.get("skipped"))
+            mark = "skip" if r.get("skipped") else "ok  " if r["ok"] else "FAIL"
+            print(f"{mark} reference/{r['reference']} [{r['route']}]: {r['line']}", flush=True)
+        if skipped:
+            print(f"{skipped} reference(s) not checked: this CPU cannot run the BLAS kernels they are pinned to",
+                  file=sys.stderr)
         if failed:
             raise SystemExit(f"{failed} reference(s) not certified")
         return
+    if args.skip_unsupported_cpu:
+        raise SystemExit("amorgs reference-certify --skip-unsupported-cpu: only with --all")
     if not args.reference:
         raise SystemExit("amorgs reference-certify: name a reference directory, or --all")
     if args.record and not args.at_commit:
@@ -696,6 +703,9 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
                    help="the committed reference directory (with starts.parquet), e.g. reference/frontier/sparse-3")
     p.add_argument("--all", action="store_true",
                    help="certify every committed reference by its route in reference/certification.json (CI)")
+    p.add_argument("--skip-unsupported-cpu", action="store_true",
+                   help="with --all: report a reference pinned to BLAS kernels this CPU cannot run (e.g. SkylakeX "
+                        "without AVX-512) as not checked here, instead of failing (CI on such a machine)")
     p.add_argument("--at-commit", nargs="?", const="recorded", default=None, metavar="COMMIT",
                    help="re-solve with the code of COMMIT (default: the one recorded for the reference) in a temporary "
                         "git worktree, in this environment, instead of this checkout's code")

@@ -322,3 +322,37 @@ def test_two_references_whose_folders_share_a_name_keep_their_own_certificates(t
     assert made == ["global-search--alpha=0.300-seed0.json", "global-search--sparse-3--alpha=0.300-seed0.json"]
     for name, file in zip(names, made):
         assert json.loads((tmp_path / "results" / "certificates" / file).read_text())["exact"], name
+
+
+def test_a_reference_pinned_to_kernels_this_cpu_lacks_is_skipped_only_when_asked(tmp_path, monkeypatch):
+    """``reference-certify --all``: a ``commit`` route pinned to a BLAS kernel set this CPU cannot run fails (it
+    cannot be certified here), and with ``--skip-unsupported-cpu`` is reported as not checked, saying why — no
+    re-solve is tried either way; a reference of today's route is still certified."""
+    import json
+
+    from amorgs import certification
+    from amorgs.errors import InputError
+
+    subprocess.run(["git", "init", "-q", str(tmp_path)], check=True)
+    for name in ("old", "new"):
+        (tmp_path / "reference" / name).mkdir(parents=True)
+        (tmp_path / "reference" / name / "provenance.json").write_text("{}")
+    registry = {"format": 1, "references": {"old": {"route": "commit", "blas_core": "SkylakeX", "commit": "0" * 40},
+                                             "new": {"route": "today"}}}
+    (tmp_path / "reference" / "certification.json").write_text(json.dumps(registry))
+
+    def lacks(core):
+        raise InputError(f"BLAS kernel set {core}: this CPU lacks avx512f, which it needs — certify on a CPU that "
+                         "has them")
+
+    def certify(dest, *args, at_commit=None, **kwargs):
+        assert Path(dest).name == "new" and at_commit is None, dest  # the pinned one is never re-solved
+        return {"exact": True, "matched": 3, "sample": 3, "code_commit": "1" * 40}
+
+    monkeypatch.setattr(certification, "check_blas_core", lacks)
+    monkeypatch.setattr(certification, "certify_reference", certify)
+    strict = {r["reference"]: r for r in certification.certify_all(tmp_path)}
+    assert not strict["old"]["ok"] and "this CPU lacks avx512f" in strict["old"]["line"] and strict["new"]["ok"]
+    lenient = {r["reference"]: r for r in certification.certify_all(tmp_path, skip_unsupported_cpu=True)}
+    assert lenient["old"]["ok"] and lenient["old"]["skipped"] and lenient["new"]["ok"]
+    assert lenient["old"]["line"].startswith("not checked on this CPU: BLAS kernel set SkylakeX")
