@@ -271,8 +271,7 @@ def cmd_global_search(args: argparse.Namespace) -> None:
         tables = summarize(study, pd.read_parquet(source / "events.parquet"),
                            pd.read_parquet(source / "solutions.parquet"))
         held = read_json(source / "study.json") if (source / "study.json").is_file() else {}
-        settings = {k: v for k, v in without_cells(held).items() if k != "inputs"}
-        same = settings == without_cells(json.loads(json.dumps(study.summary())))
+        same = without_cells(held) == without_cells(json.loads(json.dumps(study.summary())))
         inputs = held.get("inputs") if same else None  # only what these settings' searches drew on
     else:  # each finished search is kept in dest/.searches until events.parquet holds it: a rerun resumes
         study.check()

@@ -217,8 +217,9 @@ def inputs_identity(study: GlobalStudy) -> dict:
 
 
 def without_cells(settings: dict) -> dict:
-    """A study's settings (``study.json``, :meth:`GlobalStudy.summary`) less :data:`CELL_KEYS`."""
-    return {k: v for k, v in settings.items() if k not in CELL_KEYS}
+    """A study's settings (``study.json``, :meth:`GlobalStudy.summary`) less :data:`CELL_KEYS` and the ``inputs``
+    that ``study.json`` records beside them."""
+    return {k: v for k, v in settings.items() if k not in CELL_KEYS and k != "inputs"}
 
 
 def _identity(study: GlobalStudy) -> dict:
@@ -243,7 +244,7 @@ def finished_searches(dest: str | Path, study: GlobalStudy) -> dict[tuple[str, s
     held = read_json(dest / "study.json")
     want = json.loads(json.dumps(without_cells(study.summary())))
     drew_on_library = any(get_arm(s).high_quality for s in held.get("samplers", []))
-    unread = {"inputs"} | (set() if drew_on_library else {"library_alphas"})
+    unread = set() if drew_on_library else {"library_alphas"}
     differ = sorted(k for k in (set(want) | set(without_cells(held))) - unread if held.get(k) != want.get(k))
     if differ:
         raise InputError(f"--extend {dest}: its study.json differs in {', '.join(differ)} (only the cells may change)")
