@@ -215,11 +215,14 @@ def cmd_best_known(args: argparse.Namespace) -> None:
             print(f"--add {path}: outside this checkout — the record will name a file only this machine has "
                   "(commit the table, then add it from the checkout)", file=sys.stderr)
         improved += bk.add_solutions(record, table, {"kind": "search", "where": where, "commit": commit})
+    if args.lift or args.from_library or args.add:
+        improved += bk.lift(record)
     if improved:
         bk.save_record(record, args.record)
     for label, entry in sorted(record["alphas"].items()):
         mark = " (new)" if label in improved else ""
-        print(f"α = {label}: {entry['m_f_kg']:.3f} kg — {entry['source']['kind']} {entry['source']['where']}{mark}")
+        lifted = f" (α = {entry['source']['from_alpha']:g}'s trajectory)" if entry["source"]["kind"] == "lift" else ""
+        print(f"α = {label}: {entry['m_f_kg']:.3f} kg — {entry['source']['kind']}{lifted} {entry['source']['where']}{mark}")
     print(f"{args.record}: {len(set(improved))} α improved" if improved else f"{args.record}: unchanged")
 
 
@@ -614,12 +617,18 @@ def add_tools(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("best-known", help="the best known trajectory per α: show, or raise it from the library or a search",
                        description="Each α's best verified m_f and the solution holding it (data/best_known/cr3bp.json),\n"
                                    "the target global searches are timed against; an entry rises only to a solution\n"
-                                   "that passes the independent DOP853 check here.")
+                                   "that passes the independent DOP853 check here.  A trajectory stays feasible when the\n"
+                                   "maximum thrust grows (its throttles rescaled), so after --from-library or --add, and\n"
+                                   "with --lift, every entry is carried to the record's other α where it flies and is better.")
     p.add_argument("--record", default="data/best_known/cr3bp.json", help="the record (JSON)")
     p.add_argument("--from-library", default=None, metavar="DIR", help="offer each library α's best verified rows")
     p.add_argument("--add", nargs="+", default=None, metavar="TABLE",
                    help="offer the best rows of solutions tables (parquet or csv: a global search's solutions.parquet, "
                         "a design's solutions.parquet)")
+    p.add_argument("--lift", action="store_true",
+                   help="carry every entry to the record's other α where the same trajectory flies (throttles "
+                        "rescaled by α ratio, all ≤ 1) and beats the entry there — done after --from-library and --add "
+                        "anyway")
     p.set_defaults(func=cmd_best_known)
 
     p = sub.add_parser("global-search", help="time global search strategies × samplers to the best known trajectory",

@@ -70,3 +70,60 @@ def test_an_entry_names_its_table_relative_to_the_checkout(tmp_path, library_row
     far = add(str(outside / "solutions.parquet"))
     assert far.returncode == 0 and "outside this checkout" in far.stderr
     assert Path(bk.read_record(checkout / "best.json")["alphas"]["1.000"]["source"]["where"]).is_absolute()
+
+
+@pytest.fixture(scope="module")
+def low_thrust_best():
+    """The library's best verified row at α = 0.16 and its stored vector (max throttle ≈ 0.6: it flies at any α
+    above ≈ 0.096 N)."""
+    rows = read_library("data/library", "cr3bp", "0.160")
+    best = rows[rows["converged"]].sort_values("m_f", ascending=False).head(1)
+    from amorgs.problems import get_problem
+
+    return best, best[list(get_problem("cr3bp").variable_names)].to_numpy(float)[0]
+
+
+def test_a_trajectory_flies_unchanged_at_another_thrust_with_its_throttles_rescaled(low_thrust_best):
+    from amorgs.problems import get_problem
+    from amorgs.problems.cr3bp.controls import rescale_throttle
+    from amorgs.problems.cr3bp.propagation import independent_defect, propagate
+
+    problem = get_problem("cr3bp")
+    _, x = low_thrust_best
+    rho = x[6::3]
+    assert 0.3 < rho.max() < 1.0
+    here = propagate(x, 0.16, problem.initial_state, problem.terminal_state)
+    for alpha in (0.5, 1.0, 0.16 * rho.max() / 0.999):  # higher, and lower down to (almost) full throttle
+        y = rescale_throttle(x, 0.16, alpha)
+        assert y is not None and y.max() <= problem.upper.max() and y[6::3].max() <= 1.0
+        np.testing.assert_array_equal(np.delete(y, np.s_[6::3]), np.delete(x, np.s_[6::3]))  # times, m_f, angles
+        np.testing.assert_allclose(y[6::3] * alpha, rho * 0.16, rtol=1e-14)  # the same thrust α ρ
+        there = propagate(y, alpha, problem.initial_state, problem.terminal_state)
+        np.testing.assert_allclose(there.t, here.t, atol=1e-12)
+        np.testing.assert_allclose(there.states[:6], here.states[:6], atol=1e-7)  # DU, VU
+        np.testing.assert_allclose(there.states[6], here.states[6], atol=1e-6)  # fuel, kg
+        assert independent_defect(y, alpha, problem.initial_state, problem.terminal_state) < 1e-5
+    assert rescale_throttle(x, 0.16, 0.16 * rho.max() / 1.01) is None  # would need ρ > 1
+
+
+def test_lifting_carries_an_entry_to_every_alpha_it_flies_at_and_beats(tmp_path, low_thrust_best, library_rows):
+    best, _ = low_thrust_best
+    record = bk.read_record(tmp_path / "none.json")
+    bk.add_solutions(record, best, {"kind": "library", "where": "lib-0.16", "commit": "abc"})
+    worse = library_rows[library_rows["m_f"] < best["m_f"].iloc[0] - 0.1].head(1)  # α = 1.0, below it
+    bk.add_solutions(record, worse, {"kind": "library", "where": "lib-1.0"})
+    assert bk.best_m_f(record, 1.0) < bk.best_m_f(record, 0.16)
+    improved = bk.lift(record, alphas=[0.05, 0.16, 0.6, 1.0])
+    assert improved == ["0.600", "1.000"]  # not 0.05: the trajectory needs more than 0.05 N
+    for label in improved:
+        entry = record["alphas"][label]
+        assert entry["m_f_kg"] == pytest.approx(best["m_f"].iloc[0], abs=1e-12)
+        assert entry["source"] == {"kind": "lift", "from_alpha": 0.16, "where": "lib-0.16", "commit": "abc"}
+        assert entry["verify_defect"] < 1e-5
+    assert bk.lift(record) == []  # already lifted
+    m_f = [e["m_f_kg"] for _, e in sorted(record["alphas"].items())]
+    assert m_f == sorted(m_f)  # the best known no longer falls as α grows
+    bk.save_record(record, tmp_path / "best.json")
+    out = subprocess.run([sys.executable, "-m", "amorgs", "best-known", "--record", str(tmp_path / "best.json"),
+                          "--lift"], capture_output=True, text=True)
+    assert out.returncode == 0 and "unchanged" in out.stdout and "lift (α = 0.16's trajectory) lib-0.16" in out.stdout

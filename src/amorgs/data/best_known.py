@@ -4,13 +4,14 @@ One JSON file per problem (:data:`DEFAULT_PATH` for the CR3BP), keyed by α labe
 
     {"format": 1, "problem": "cr3bp",
      "alphas": {"0.300": {"alpha": 0.3, "m_f_kg": 439.38…, "x": [64 numbers, the stored decision vector],
-                          "verify_defect": 7.1e-07, "source": {"kind": "search" | "library", "where": …,
+                          "verify_defect": 7.1e-07, "source": {"kind": "search" | "library" | "lift", "where": …,
                           "commit": …}, "recorded": "2026-12-05T…"}}}
 
 An entry changes only to a higher m_f, and only after the solution passes the project's independent check
 here (inside the box, DOP853 re-propagation of the match point within the solver's ``verify_tol``): a row's own
 ``converged`` flag is not trusted.  Fed by :func:`from_library` (each α's best verified library row) and by
-:func:`add_solutions` (a search's solutions table: ``amorgs global-search``'s, ``amorgs design``'s), both behind
+:func:`add_solutions` (a search's solutions table: ``amorgs global-search``'s, ``amorgs design``'s), and kept
+non-decreasing in α by :func:`lift` (a trajectory stays feasible when the maximum thrust grows), all behind
 ``amorgs best-known``.
 """
 
@@ -124,6 +125,42 @@ def from_library(record: dict, library_dir: str | Path, source_commit: str = "")
         rows = read_library(library_dir, PROBLEM, alpha_label(entry["alpha"]))
         improved += add_solutions(record, rows, {"kind": "library", "where": str(Path(library_dir) / PROBLEM),
                                                  "commit": source_commit})
+    return sorted(set(improved))
+
+
+def lift(record: dict, alphas=None, verify_tol: float = 1e-5) -> list[str]:
+    """Carry entries across α (changed in place): a trajectory flown at maximum thrust α_s with throttles ρ is
+    flown unchanged at α_t with ρ' = ρ α_s / α_t wherever every ρ' ≤ 1
+    (:func:`~amorgs.problems.cr3bp.controls.rescale_throttle`) — at every α_t ≥ α_s, and below α_s down to
+    α_s max ρ.  So the best known m_f cannot fall as α grows, and an entry below a lower α's is beaten by that
+    entry's trajectory.  Each entry, best first, is offered at every α of ``alphas`` (default: the record's own)
+    where it beats the entry there, through :func:`offer` (the independent check at α_t); source ``{"kind":
+    "lift", "from_alpha": α_s, "where": and "commit": the lifted entry's}``.  Returns the improved α labels."""
+    from amorgs.problems.cr3bp.controls import rescale_throttle
+
+    targets = sorted({float(a) for a in (alphas if alphas is not None else
+                                         [e["alpha"] for e in record["alphas"].values()])})
+    sources = sorted(record["alphas"].values(), key=lambda e: -float(e["m_f_kg"]))
+    improved = []
+    for entry in [dict(e) for e in sources]:
+        alpha_from = float(entry["alpha"])
+        for alpha_to in targets:
+            if alpha_to == alpha_from:
+                continue
+            current = best_m_f(record, alpha_to)
+            if not math.isnan(current) and float(entry["m_f_kg"]) <= current:
+                continue
+            y = rescale_throttle(np.asarray(entry["x"], float), alpha_from, alpha_to)
+            if y is None:
+                continue
+            source = {"kind": "lift", "from_alpha": entry["source"].get("from_alpha", alpha_from),
+                      "where": entry["source"].get("where", ""),
+                      "commit": entry["source"].get("commit", "")}
+            try:
+                if offer(record, alpha_to, y, source, verify_tol):
+                    improved.append(alpha_label(alpha_to))
+            except InputError:
+                continue  # does not close at α_t within the tolerance here: not entered
     return sorted(set(improved))
 
 

@@ -29,3 +29,17 @@ def spherical_controls(u: np.ndarray) -> np.ndarray:
     theta = np.mod(np.arctan2(u[..., 1], u[..., 0]), 2 * math.pi)
     phi = np.arcsin(np.clip(u[..., 2] / np.where(rho > 0, rho, 1.0), -1.0, 1.0))
     return np.stack([theta, phi, np.minimum(rho, 1.0)], axis=-1).reshape(len(u), -1)
+
+
+def rescale_throttle(x: np.ndarray, alpha_from: float, alpha_to: float) -> np.ndarray | None:
+    """The stored vector ``x`` (layout above) of a solution at maximum thrust ``alpha_from`` (N), re-expressed at
+    ``alpha_to`` (N) as the *same* trajectory: the thrust is T = α ρ and the mass flow −T ρ / c depend on α only
+    through α ρ, so ρ' = ρ α_from / α_to flies it unchanged — times, directions and m_f are kept.  ``None`` where
+    some ρ' would exceed 1 (the trajectory needs more thrust than ``alpha_to`` allows).  Hence the best final mass
+    at α is non-decreasing in α."""
+    y = np.array(x, float)
+    rho = y[6::3] * (alpha_from / alpha_to)
+    if rho.max(initial=0.0) > 1.0:
+        return None
+    y[6::3] = rho
+    return y
