@@ -361,11 +361,13 @@ def resolve_sampler(request: DesignRequest, cfg) -> tuple[DesignRequest, str]:
     return replace(request, sampler=choice.sampler), f"sampler {choice.sampler} (--sampler auto): {choice.reason}"
 
 
-def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBAL_SEARCH) -> tuple[DesignRequest, str]:
+def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBAL_SEARCH,
+                     record: str | Path = "data/best_known/cr3bp.json") -> tuple[DesignRequest, str]:
     """``request`` with ``--strategy auto`` replaced by what the committed global-search study nearest in α says
     (``studies``/alpha=*/: events.parquet, study.json, best_known.csv), and one line saying which and why: ``mbh``
     if monotonic basin hopping from the request's sampler (its resolved arm, or ``uniform`` where the study has
-    no cell of it) reached within :data:`STRATEGY_DELTA_KG` of the best known m_f in significantly fewer IPOPT
+    no cell of it) reached within :data:`STRATEGY_DELTA_KG` of the best known m_f (the study's, or the best-known
+    ``record``'s at its α where that is higher: :func:`amorgs.data.best_known.lift`) in significantly fewer IPOPT
     iterations than multi-start from the same sampler (ERT ratio's bootstrap 95 % interval below 1, the study's
     own budget, seed and target; or MBH got there and multi-start never did), ``multistart`` otherwise or without
     a study.  Any other strategy is kept."""
@@ -391,7 +393,12 @@ def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBA
     if not {("multistart", sampler), ("mbh", sampler)} <= cells:
         return (replace(request, strategy="multistart"),
                 f"strategy multistart (--strategy auto): {head} holds no multistart and mbh cells of {sampler}")
+    from amorgs.data import best_known as bk
+
     best = -float(pd.read_csv(where / "best_known.csv")["m_f"].iloc[0])
+    known = -bk.best_m_f(bk.read_record(record), study["alpha"])
+    if known < best:  # NaN (no entry) compares False
+        best = known
     # multi-start ÷ MBH, so that a multi-start that never got there (∞) still answers: MBH is significantly faster
     # when this ratio's interval lies above 1; it is reported the other way round (MBH ÷ multi-start, the
     # percentile interval's ends inverted, 1/∞ = 0)
