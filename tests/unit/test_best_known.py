@@ -121,6 +121,9 @@ def test_lifting_carries_an_entry_to_every_alpha_it_flies_at_and_beats(tmp_path,
         assert entry["source"] == {"kind": "lift", "from_alpha": 0.16, "where": "lib-0.16", "commit": "abc"}
         assert entry["verify_defect"] < 1e-5
     assert bk.lift(record) == []  # already lifted
+    # at an α the record has no entry for, the best known is the best trajectory that flies there
+    assert bk.best_m_f_lifted(record, 0.45) == pytest.approx(best["m_f"].iloc[0], abs=1e-12)
+    assert np.isnan(bk.best_m_f_lifted(record, 0.05)) and "0.450" not in record["alphas"]
     m_f = [e["m_f_kg"] for _, e in sorted(record["alphas"].items())]
     assert m_f == sorted(m_f)  # the best known no longer falls as α grows
     bk.save_record(record, tmp_path / "best.json")

@@ -423,7 +423,7 @@ def summarize(study: GlobalStudy, events: pd.DataFrame, solutions: pd.DataFrame)
     verified = library[library["converged"]] if len(library) else library
     found = solutions["objective"] if len(solutions) else []
     lib_best = best_known(-verified["m_f"]) if len(verified) else np.nan
-    record_best = -bk.best_m_f(bk.read_record(study.record), study.alpha)
+    record_best = -bk.best_m_f_lifted(bk.read_record(study.record), study.alpha)
     best = best_known([lib_best], [record_best], found)
     source = "library" if best == lib_best else "best-known record" if best == record_best else "this study"
     tables = {

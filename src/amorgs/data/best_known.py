@@ -164,6 +164,16 @@ def lift(record: dict, alphas=None, verify_tol: float = 1e-5) -> list[str]:
     return sorted(set(improved))
 
 
+def best_m_f_lifted(record: dict, alpha: float, verify_tol: float = 1e-5) -> float:
+    """The best known m_f (kg) at ``alpha``, also where the record has no entry there: its entry, or any entry's
+    trajectory carried to ``alpha`` by :func:`lift` (verified at ``alpha``) where that is higher; NaN where
+    neither.  ``record`` is not changed."""
+    here = {"format": record.get("format", 1), "problem": record.get("problem", PROBLEM),
+            "alphas": dict(record["alphas"])}
+    lift(here, alphas=[alpha], verify_tol=verify_tol)
+    return best_m_f(here, alpha)
+
+
 def source_where(path: str | Path, root: str | Path) -> str:
     """How the record names a solutions table: relative to ``root`` (the checkout) where it lies inside it, so that
     the entry names a file a reader of the repository can open; else its absolute path."""

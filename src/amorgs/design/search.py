@@ -225,7 +225,7 @@ def best_known(library_dir: str | Path, alpha: float, solves: pd.DataFrame,
                if alpha_label(e["alpha"]) == alpha_label(alpha) and e.get("best_objective") is not None]
     conv = solves[solves["converged"].astype(bool)] if len(solves) else solves
     try:
-        record = bk.best_m_f(bk.read_record(record_path or bk.DEFAULT_PATH), alpha)
+        record = bk.best_m_f_lifted(bk.read_record(record_path or bk.DEFAULT_PATH), alpha)
     except InputError:  # a damaged record must not lose a finished search: the library and the search still count
         record = math.nan
     candidates = {"best-known record": record, "library": library[0] if library else math.nan,
@@ -396,7 +396,7 @@ def resolve_strategy(request: DesignRequest, studies: str | Path = DEFAULT_GLOBA
     from amorgs.data import best_known as bk
 
     best = -float(pd.read_csv(where / "best_known.csv")["m_f"].iloc[0])
-    known = -bk.best_m_f(bk.read_record(record), study["alpha"])
+    known = -bk.best_m_f_lifted(bk.read_record(record), study["alpha"])
     if known < best:  # NaN (no entry) compares False
         best = known
     # multi-start ÷ MBH, so that a multi-start that never got there (∞) still answers: MBH is significantly faster

@@ -149,7 +149,7 @@ def run_report(job: Job, run) -> None:
     for alpha, cell_events in events.groupby("alpha"):
         found = solutions[solutions["alpha"] == alpha] if len(solutions) else solutions
         library = _library_best(s.library_path, alpha)
-        record = -bk.best_m_f(bk.read_record(s.record_path), alpha) if s.record_path else math.nan
+        record = -bk.best_m_f_lifted(bk.read_record(s.record_path), alpha) if s.record_path else math.nan
         best = best_known([library], [record], found["objective"] if len(found) else [])
         if best != best:  # NaN: nothing feasible anywhere
             raise InputError(f"global_search_report: no feasible solution at α = {alpha:g} to time against")
