@@ -163,6 +163,11 @@ def cmd_design(args: argparse.Namespace) -> None:
         gaps = ", ".join(f"{g:.3f}" for g in result.selected["below_best_known_kg"])
         print(f"best known m_f at α = {args.alpha:g}: {known:.3f} kg ({result.info['best_known_source']}); the "
               f"returned solutions are {gaps} kg below it ({result.info.get('strategy', args.strategy)})")
+    if result.best_known is not None:
+        source = result.best_known["source"]
+        print(f"best known trajectory (the best-known record's, found at α = "
+              f"{float(source.get('from_alpha', args.alpha)):g} N in {source.get('where') or 'an unnamed run'}): "
+              f"{out / 'best_known.csv'}, {out / 'trajectories' / 'best-known.oem'}")
     if result.found < args.n:
         print(f"amorgs design: only {result.found} of {args.n} found before the budget ran out "
               f"({result.stop_reason}); raise --max-starts / --max-cpu-s or lower -n", file=sys.stderr)

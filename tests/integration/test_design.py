@@ -114,6 +114,34 @@ def test_oem_read_back_matches_propagate_and_solutions_verify(designed):
 
 
 @pytest.mark.slow
+def test_design_returns_the_best_known_trajectory_with_its_provenance(designed):
+    """The best-known record holds α = 0.42's best known m_f (a trajectory lifted from another α; 12 starts do not
+    reach it): the design writes it — best_known.csv, the vector at α that the independent check passes, with
+    its provenance; what every returned solution is measured from; its history and OEM — and says so."""
+    from amorgs.data import best_known as bk
+    from amorgs.problems import get_problem
+
+    out = designed["out"]
+    summary = json.loads((out / "summary.json").read_text())
+    expected = bk.best_entry_lifted(bk.read_record(REPO / bk.DEFAULT_PATH), ALPHA)
+    assert summary["best_known_source"] == "best-known record"
+    assert summary["best_known_m_f_kg"] == pytest.approx(expected["m_f_kg"], abs=1e-9)
+    row = pd.read_csv(out / "best_known.csv").iloc[0]
+    x = row[list(get_problem("cr3bp").variable_names)].to_numpy(float)
+    np.testing.assert_allclose(x, expected["x"], rtol=1e-15, atol=0)
+    assert bk.verify(x, ALPHA) <= 1e-5 and row["m_f"] == pytest.approx(summary["best_known_m_f_kg"], abs=1e-9)
+    assert row["from_alpha"] == expected["source"]["from_alpha"] != ALPHA and row["where"] == expected["source"]["where"]
+    selected = pd.read_parquet(out / "solutions.parquet")
+    np.testing.assert_allclose(selected["below_best_known_kg"], row["m_f"] - selected["m_f"], atol=1e-9)
+    assert (selected["below_best_known_kg"] > 0).all()
+    history = pd.read_csv(out / "trajectories" / "best-known.csv")
+    assert history["t_tu"].is_monotonic_increasing and history["fuel_kg"].iloc[-1] == pytest.approx(row["m_f"], abs=1e-6)
+    assert (out / "trajectories" / "best-known.oem").stat().st_size > 0
+    assert summary["best_known_trajectory"]["source"] == expected["source"]
+    assert "best known trajectory" in designed["proc"].stdout and "best_known.csv" in (out / "README.txt").read_text()
+
+
+@pytest.mark.slow
 def test_design_is_one_mlflow_run_with_metrics_and_artifacts(designed):
     from mlflow.tracking import MlflowClient
 

@@ -107,7 +107,7 @@ def test_a_trajectory_flies_unchanged_at_another_thrust_with_its_throttles_resca
 
 
 def test_lifting_carries_an_entry_to_every_alpha_it_flies_at_and_beats(tmp_path, low_thrust_best, library_rows):
-    best, _ = low_thrust_best
+    best, x = low_thrust_best
     record = bk.read_record(tmp_path / "none.json")
     bk.add_solutions(record, best, {"kind": "library", "where": "lib-0.16", "commit": "abc"})
     worse = library_rows[library_rows["m_f"] < best["m_f"].iloc[0] - 0.1].head(1)  # α = 1.0, below it
@@ -124,6 +124,11 @@ def test_lifting_carries_an_entry_to_every_alpha_it_flies_at_and_beats(tmp_path,
     # at an α the record has no entry for, the best known is the best trajectory that flies there
     assert bk.best_m_f_lifted(record, 0.45) == pytest.approx(best["m_f"].iloc[0], abs=1e-12)
     assert np.isnan(bk.best_m_f_lifted(record, 0.05)) and "0.450" not in record["alphas"]
+    there = bk.best_entry_lifted(record, 0.45)  # and its trajectory, flown at 0.45, with its provenance
+    y = np.asarray(there["x"])
+    assert there["source"]["from_alpha"] == 0.16 and there["m_f_kg"] == y[3] == x[3]
+    np.testing.assert_allclose(y[6::3] * 0.45, x[6::3] * 0.16, rtol=1e-14)  # the same thrust α ρ
+    assert bk.verify(y, 0.45) == there["verify_defect"] and bk.best_entry_lifted(record, 0.05) is None
     m_f = [e["m_f_kg"] for _, e in sorted(record["alphas"].items())]
     assert m_f == sorted(m_f)  # the best known no longer falls as α grows
     bk.save_record(record, tmp_path / "best.json")

@@ -164,14 +164,21 @@ def lift(record: dict, alphas=None, verify_tol: float = 1e-5) -> list[str]:
     return sorted(set(improved))
 
 
-def best_m_f_lifted(record: dict, alpha: float, verify_tol: float = 1e-5) -> float:
-    """The best known m_f (kg) at ``alpha``, also where the record has no entry there: its entry, or any entry's
-    trajectory carried to ``alpha`` by :func:`lift` (verified at ``alpha``) where that is higher; NaN where
-    neither.  ``record`` is not changed."""
+def best_entry_lifted(record: dict, alpha: float, verify_tol: float = 1e-5) -> dict | None:
+    """The best known trajectory at ``alpha``, also where the record has no entry there: its entry, or any entry's
+    trajectory carried to ``alpha`` by :func:`lift` (verified at ``alpha``) where that is higher — a record entry
+    (``alpha``, ``m_f_kg``, ``x`` in the stored layout at ``alpha``, ``verify_defect``, ``source``); ``None``
+    where neither.  ``record`` is not changed."""
     here = {"format": record.get("format", 1), "problem": record.get("problem", PROBLEM),
             "alphas": dict(record["alphas"])}
     lift(here, alphas=[alpha], verify_tol=verify_tol)
-    return best_m_f(here, alpha)
+    return here["alphas"].get(alpha_label(alpha))
+
+
+def best_m_f_lifted(record: dict, alpha: float, verify_tol: float = 1e-5) -> float:
+    """The m_f (kg) of :func:`best_entry_lifted` at ``alpha``; NaN where there is none."""
+    entry = best_entry_lifted(record, alpha, verify_tol)
+    return float(entry["m_f_kg"]) if entry else math.nan
 
 
 def source_where(path: str | Path, root: str | Path) -> str:

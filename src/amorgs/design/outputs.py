@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from amorgs.alphas import alpha_label
 from amorgs.design.search import PROBLEM, DesignResult
 from amorgs.errors import InputError
@@ -54,6 +56,9 @@ def write_outputs(result: DesignResult, output_dir: str | Path) -> dict[str, lis
         trajectories.png                     3-D plot, rotating and Earth-centred inertial frames
         trajectories/rank-KK.csv             dense state and control history (trajectory_export.dense_history)
         trajectories/rank-KK.oem             CCSDS OEM (KVN), Earth-centred inertial EMI_CR3BP, TDB
+        best_known.csv                       where the best-known record holds the best known m_f at α
+        trajectories/best-known.{csv,oem}    (``result.best_known``): that trajectory (stored layout at α, its
+                                             provenance), whether or not the search found it
         README.txt                           what the files hold, the frames and the epoch
 
     Earlier ``trajectories/rank-*.{csv,oem}`` in the folder are removed first (they belong to an earlier call).
@@ -71,7 +76,8 @@ def write_outputs(result: DesignResult, output_dir: str | Path) -> dict[str, lis
     out = Path(output_dir)
     traj_dir = out / "trajectories"
     traj_dir.mkdir(parents=True, exist_ok=True)
-    for old in [*traj_dir.glob("rank-*.csv"), *traj_dir.glob("rank-*.oem")]:
+    for old in [*traj_dir.glob("rank-*.csv"), *traj_dir.glob("rank-*.oem"), *traj_dir.glob("best-known.*"),
+                *out.glob("best_known.csv")]:
         old.unlink()
     problem = get_problem(PROBLEM)
     req = result.request
@@ -102,6 +108,29 @@ def write_outputs(result: DesignResult, output_dir: str | Path) -> dict[str, lis
         histories.append(history)
         labels.append(f"#{rank} m_f={row['m_f']:.1f} kg TOF={row['tau_s'] + row['tau_i'] + row['tau_f']:.1f} TU")
 
+    known = result.best_known
+    if known is not None:  # the record's trajectory at α: what "below the best known" measures against
+        import pandas as pd
+
+        x = np.asarray(known["x"], float)
+        source = known["source"]
+        row = {"alpha": req.alpha, "m_f": float(x[3]), "verify_defect": float(known["verify_defect"]),
+               "source_kind": source.get("kind", ""), "from_alpha": float(source.get("from_alpha", req.alpha)),
+               "where": source.get("where", ""), "commit": source.get("commit", ""),
+               **dict(zip(problem.variable_names, x))}
+        with atomic_path(out / "best_known.csv") as tmp:
+            pd.DataFrame([row]).to_csv(tmp, index=False)
+        history = te.dense_history(x, req.alpha, problem.initial_state, problem.terminal_state)
+        csv = traj_dir / "best-known.csv"
+        with atomic_path(csv) as tmp:
+            history.to_csv(tmp, index=False)
+        oem = te.write_oem(history, traj_dir / "best-known.oem", object_name=f"AMORGS ALPHA={label} BEST KNOWN",
+                           object_id=f"amorgs-{label}-best-known")
+        paths["tables"].append(out / "best_known.csv")
+        paths["trajectories"] += [csv, oem]
+        histories.append(history)
+        labels.append(f"best known m_f={x[3]:.1f} kg TOF={x[0] + x[1] + x[2]:.1f} TU (record)")
+
     fig = te.plot_trajectories(histories, req.alpha, labels)
     with atomic_path(out / "trajectories.png") as tmp:
         fig.savefig(tmp, format="png", dpi=150, bbox_inches="tight")
@@ -123,12 +152,34 @@ def write_outputs(result: DesignResult, output_dir: str | Path) -> dict[str, lis
              "verify_defect": float(r["verify_defect"])}
             for _, r in selected.iterrows()
         ],
+        "best_known_trajectory": None if known is None else {
+            "m_f_kg": float(known["m_f_kg"]), "verify_defect": float(known["verify_defect"]),
+            "source": known["source"], "files": ["best_known.csv", "trajectories/best-known.csv",
+                                                 "trajectories/best-known.oem"]},
     }
     write_json(summary, out / "summary.json")
     with atomic_path(out / "README.txt") as tmp:
         tmp.write_text(_readme(result, summary))
     paths["reports"] += [out / "summary.json", out / "README.txt"]
     return paths
+
+
+def _best_known_lines(result: DesignResult) -> str:
+    """The README's lines on the best known m_f at α and, where the best-known record holds it, its files."""
+    known, source = result.info.get("best_known_m_f_kg"), result.info.get("best_known_source", "none")
+    if known is None:
+        return ""
+    text = f"\n\nBest known m_f at this alpha: {known:.3f} kg ({source}); below_best_known_kg in solutions.csv is " \
+           "each solution's distance from it."
+    if result.best_known is not None:
+        s = result.best_known["source"]
+        text += f"""
+best_known.csv             that trajectory (decision vector at this alpha, from_alpha, where, commit): the record's
+                           entry, found at alpha = {float(s.get('from_alpha', result.request.alpha)):g} N in {s.get('where') or 'an unnamed run'}
+                           ({s.get('kind', '')}; a lifted one flies unchanged here, throttles rescaled by
+                           alpha_s / alpha), independently re-verified at this alpha.
+trajectories/best-known.csv, .oem   its dense history and OEM, as for rank-KK."""
+    return text
 
 
 def _readme(result: DesignResult, summary: dict) -> str:
@@ -151,7 +202,7 @@ trajectories/rank-KK.csv   dense history of solution KK: {', '.join(['t_tu', 't_
                            thrust_n, thrust direction ux_rot..uz_rot (rotating axes), ux_emi..uz_emi (inertial axes).
                            Arc boundaries appear twice (end of one arc, start of the next).
 trajectories/rank-KK.oem   CCSDS OEM 2.0 (KVN): inertial position and velocity, km and km/s.
-trajectories.png           3-D plot in both frames.
+trajectories.png           3-D plot in both frames.{_best_known_lines(result)}
 
 Frames and time
   rotating:  {summary['frames']['rotating']}; DU = {frames.DU_KM} km, VU = {frames.VU_KM_S:.9f} km/s,

@@ -176,7 +176,9 @@ class DesignResult:
     ``selected`` flags); ``found``: size of the η-diverse high-quality set; ``stop_reason``: ``found``,
     ``max_starts`` or ``max_cpu_s``; ``cpu_s``: CPU seconds of this process and its solver workers;
     ``solver_cpu_s``: the IPOPT CPU seconds summed over solves; ``wall_s``: wall seconds; ``info``: the
-    sampler's provenance (nearest training α, seed rows) and the solver options.
+    sampler's provenance (nearest training α, seed rows) and the solver options; ``best_known``: the best-known
+    record's entry at α (``m_f_kg``, ``x`` in the stored layout, ``verify_defect``, ``source``) where the record
+    holds the best known m_f at α — a trajectory the search may not have found — else ``None``.
     """
 
     request: DesignRequest
@@ -190,6 +192,7 @@ class DesignResult:
     solver_cpu_s: float
     wall_s: float
     info: dict = field(default_factory=dict)
+    best_known: dict | None = None
 
     def summary(self) -> dict:
         """Flat JSON-able summary (request, counts, timings, provenance)."""
@@ -213,10 +216,13 @@ class DesignResult:
 
 
 def best_known(library_dir: str | Path, alpha: float, solves: pd.DataFrame,
-               record_path: str | Path | None = None) -> dict:
+               record_path: str | Path | None = None) -> tuple[dict, dict | None]:
     """The best verified m_f known at ``alpha`` (kg) and where it is held: the best-known record
-    (:mod:`amorgs.data.best_known`, ``data/best_known/cr3bp.json`` unless ``record_path``), the library's per-α best
-    (its manifest, where ``alpha`` is a library α) or this search's converged solves, whichever is highest."""
+    (:mod:`amorgs.data.best_known`, ``data/best_known/cr3bp.json`` unless ``record_path``; its entry at ``alpha``
+    or one lifted there), the library's per-α best (its manifest, where ``alpha`` is a library α) or this search's
+    converged solves, whichever is highest (the record on a tie).  Returns ``({"best_known_m_f_kg",
+    "best_known_source"}, entry)``: ``entry`` is the record's entry at ``alpha`` (its trajectory ``x`` in the
+    stored layout, ``source`` provenance) where the record holds the best known, else ``None``."""
     from amorgs.data import best_known as bk
     from amorgs.data.library import read_manifest
 
@@ -225,16 +231,18 @@ def best_known(library_dir: str | Path, alpha: float, solves: pd.DataFrame,
                if alpha_label(e["alpha"]) == alpha_label(alpha) and e.get("best_objective") is not None]
     conv = solves[solves["converged"].astype(bool)] if len(solves) else solves
     try:
-        record = bk.best_m_f_lifted(bk.read_record(record_path or bk.DEFAULT_PATH), alpha)
+        entry = bk.best_entry_lifted(bk.read_record(record_path or bk.DEFAULT_PATH), alpha)
     except InputError:  # a damaged record must not lose a finished search: the library and the search still count
-        record = math.nan
-    candidates = {"best-known record": record, "library": library[0] if library else math.nan,
+        entry = None
+    candidates = {"best-known record": float(entry["m_f_kg"]) if entry else math.nan,
+                  "library": library[0] if library else math.nan,
                   "this search": float(conv["m_f"].max()) if len(conv) else math.nan}
     known = {k: v for k, v in candidates.items() if math.isfinite(v)}
     if not known:
-        return {"best_known_m_f_kg": None, "best_known_source": "none"}
+        return {"best_known_m_f_kg": None, "best_known_source": "none"}, None
     source = max(known, key=known.get)
-    return {"best_known_m_f_kg": known[source], "best_known_source": source}
+    return ({"best_known_m_f_kg": known[source], "best_known_source": source},
+            entry if source == "best-known record" else None)
 
 
 def _cpu_seconds() -> float:
@@ -679,7 +687,8 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
         keep = solves["converged"].astype(bool) & (solves["m_f"] >= request.beta_kg)
         solves["high_quality"] = keep.to_numpy()
         solves["selected"] = solves["start"].isin(selected["start"]) if len(selected) else False
-    info.update(best_known(request.library_dir, request.alpha, solves))
+    known, record_entry = best_known(request.library_dir, request.alpha, solves)
+    info.update(known)
     if len(selected):  # how far each chosen trajectory is from the best known at this α (kg, ≥ 0)
         selected = selected.assign(below_best_known_kg=info["best_known_m_f_kg"] - selected["m_f"])
     return DesignResult(
@@ -694,5 +703,6 @@ def design(request: DesignRequest, progress: Callable[[dict], None] | None = Non
         solver_cpu_s=float(solves["cpu_s"].sum()) if len(solves) else 0.0,
         wall_s=time.perf_counter() - wall0,
         info=info,
+        best_known=record_entry,
     )
 
