@@ -94,19 +94,23 @@ def write_outputs(result: DesignResult, output_dir: str | Path) -> dict[str, lis
         paths["tables"].append(out / "all_solves.parquet")
 
     histories, labels = [], []
-    for _, row in selected.iterrows():
-        rank = int(row["rank"])
-        x = row[list(problem.variable_names)].to_numpy(dtype=float)
+
+    def trajectory(x: np.ndarray, stem: str, object_name: str, object_id: str, caption: str) -> None:
+        """``trajectories/<stem>.{csv,oem}`` of the stored vector ``x`` at α, and its curve and label in the plot."""
         history = te.dense_history(x, req.alpha, problem.initial_state, problem.terminal_state)
-        csv = traj_dir / f"rank-{rank:02d}.csv"
+        csv = traj_dir / f"{stem}.csv"
         with atomic_path(csv) as tmp:
             history.to_csv(tmp, index=False)
-        oem = te.write_oem(history, traj_dir / f"rank-{rank:02d}.oem",
-                           object_name=f"AMORGS ALPHA={label} RANK={rank:02d}",
-                           object_id=f"amorgs-{label}-seed{req.seed}-start{int(row['start'])}")
+        oem = te.write_oem(history, traj_dir / f"{stem}.oem", object_name=object_name, object_id=object_id)
         paths["trajectories"] += [csv, oem]
         histories.append(history)
-        labels.append(f"#{rank} m_f={row['m_f']:.1f} kg TOF={row['tau_s'] + row['tau_i'] + row['tau_f']:.1f} TU")
+        labels.append(f"{caption} m_f={x[3]:.1f} kg TOF={x[0] + x[1] + x[2]:.1f} TU")
+
+    for _, row in selected.iterrows():
+        rank = int(row["rank"])
+        trajectory(row[list(problem.variable_names)].to_numpy(dtype=float), f"rank-{rank:02d}",
+                   f"AMORGS ALPHA={label} RANK={rank:02d}", f"amorgs-{label}-seed{req.seed}-start{int(row['start'])}",
+                   f"#{rank}")
 
     known = result.best_known
     if known is not None:  # the record's trajectory at α: what "below the best known" measures against
@@ -120,16 +124,9 @@ def write_outputs(result: DesignResult, output_dir: str | Path) -> dict[str, lis
                **dict(zip(problem.variable_names, x))}
         with atomic_path(out / "best_known.csv") as tmp:
             pd.DataFrame([row]).to_csv(tmp, index=False)
-        history = te.dense_history(x, req.alpha, problem.initial_state, problem.terminal_state)
-        csv = traj_dir / "best-known.csv"
-        with atomic_path(csv) as tmp:
-            history.to_csv(tmp, index=False)
-        oem = te.write_oem(history, traj_dir / "best-known.oem", object_name=f"AMORGS ALPHA={label} BEST KNOWN",
-                           object_id=f"amorgs-{label}-best-known")
         paths["tables"].append(out / "best_known.csv")
-        paths["trajectories"] += [csv, oem]
-        histories.append(history)
-        labels.append(f"best known m_f={x[3]:.1f} kg TOF={x[0] + x[1] + x[2]:.1f} TU (record)")
+        trajectory(x, "best-known", f"AMORGS ALPHA={label} BEST KNOWN", f"amorgs-{label}-best-known",
+                   "best known (record)")
 
     fig = te.plot_trajectories(histories, req.alpha, labels)
     with atomic_path(out / "trajectories.png") as tmp:
